@@ -1,0 +1,137 @@
+"""Rigid transforms (SE(3)/SO(3)) that work on numpy arrays and CasADi SX alike.
+
+Conventions: `T_a_b` is a (4, 4) homogeneous transform mapping coordinates in frame b to frame a;
+`R_a_b` its (3, 3) rotation; `p_a` a point in frame a. Roll-pitch-yaw follows URDF: fixed axes,
+R = Rz(yaw) @ Ry(pitch) @ Rx(roll).
+
+    >>> T_palm_object = make_T(rpy_to_R(0.1, 0.0, 0.2), [0.1, 0.0, 0.05])
+    >>> p_palm = transform_points(T_palm_object, p_object)
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "rot_axis_angle",
+    "rpy_to_R",
+    "make_T",
+    "inv_T",
+    "transform_points",
+    "kabsch",
+    "rotation_angle",
+    "log_SO3",
+    "exp_so3",
+]
+
+
+def _is_symbolic(*xs) -> bool:
+    return any(isinstance(x, (ca.SX, ca.MX, ca.DM)) for x in xs)
+
+
+def rot_axis_angle(axis: ArrayLike, angle):
+    """Rotation matrix (3, 3) about a unit `axis` (3,) by `angle` (rad); `angle` may be a CasADi scalar.
+
+    Rodrigues' formula R = I + sin(a) K + (1 - cos(a)) K², with K the cross-product matrix of `axis`.
+    """
+    axis = np.asarray(axis, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    x, y, z = axis
+    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    if _is_symbolic(angle):
+        return ca.DM(np.eye(3)) + ca.sin(angle) * ca.DM(K) + (1 - ca.cos(angle)) * ca.DM(K @ K)
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K)
+
+
+def rpy_to_R(roll: float, pitch: float, yaw: float) -> NDArray[np.float64]:
+    """URDF fixed-axis roll-pitch-yaw (rad) to a (3, 3) rotation: Rz(yaw) @ Ry(pitch) @ Rx(roll)."""
+    cr, sr = np.cos(roll), np.sin(roll)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+def make_T(R, p):
+    """Homogeneous (4, 4) transform from rotation (3, 3) and translation (3,); numpy or CasADi."""
+    if _is_symbolic(R, p):
+        T = ca.SX.eye(4) if not isinstance(R, ca.MX) else ca.MX.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = p
+        return T
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(R, dtype=float)
+    T[:3, 3] = np.asarray(p, dtype=float).reshape(3)
+    return T
+
+
+def inv_T(T):
+    """Inverse of a rigid (4, 4) transform: [R p; 0 1]⁻¹ = [Rᵀ −Rᵀp; 0 1]."""
+    if _is_symbolic(T):
+        R = T[:3, :3]
+        p = T[:3, 3]
+        return make_T(R.T, -R.T @ p)
+    T = np.asarray(T, dtype=float)
+    R, p = T[:3, :3], T[:3, 3]
+    return make_T(R.T, -R.T @ p)
+
+
+def transform_points(T_a_b, p_b):
+    """Map points (n, 3) (numpy) or (3, n) (CasADi) from frame b to frame a."""
+    if _is_symbolic(T_a_b, p_b):
+        return T_a_b[:3, :3] @ p_b + ca.repmat(T_a_b[:3, 3], 1, p_b.shape[1])
+    T_a_b = np.asarray(T_a_b, dtype=float)
+    p_b = np.asarray(p_b, dtype=float)
+    return p_b @ T_a_b[:3, :3].T + T_a_b[:3, 3]
+
+
+def kabsch(p_src: ArrayLike, p_dst: ArrayLike) -> NDArray[np.float64]:
+    """Least-squares rigid transform (4, 4) mapping points `p_src` (n, 3) onto `p_dst` (n, 3).
+
+    Minimises Σ_i ||R p_src_i + t − p_dst_i||² over R ∈ SO(3), t ∈ R³ (Besl & McKay 1992, by SVD of
+    the cross-covariance, with the reflection fix).
+    """
+    p_src = np.asarray(p_src, dtype=float)
+    p_dst = np.asarray(p_dst, dtype=float)
+    c_src, c_dst = p_src.mean(axis=0), p_dst.mean(axis=0)
+    H = (p_src - c_src).T @ (p_dst - c_dst)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(Vt.T @ U.T))
+    D = np.diag([1.0, 1.0, d if d != 0 else 1.0])
+    R = Vt.T @ D @ U.T
+    return make_T(R, c_dst - R @ c_src)
+
+
+def rotation_angle(R_a: ArrayLike, R_b: ArrayLike) -> float:
+    """Geodesic angle (rad) between two rotations (3, 3): arccos((tr(R_aᵀ R_b) − 1) / 2)."""
+    c = (np.trace(np.asarray(R_a).T @ np.asarray(R_b)) - 1.0) / 2.0
+    return float(np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+def exp_so3(w: ArrayLike) -> NDArray[np.float64]:
+    """Rotation (3, 3) of the rotation vector `w` (3,), rad (axis times angle)."""
+    w = np.asarray(w, dtype=float)
+    a = np.linalg.norm(w)
+    if a < 1e-15:
+        return np.eye(3)
+    return rot_axis_angle(w / a, a)
+
+
+def log_SO3(R: ArrayLike) -> NDArray[np.float64]:
+    """Rotation vector (3,) of a rotation (3, 3); inverse of `exp_so3` for angles in [0, π)."""
+    R = np.asarray(R, dtype=float)
+    a = rotation_angle(np.eye(3), R)
+    if a < 1e-12:
+        return 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if np.pi - a < 1e-6:
+        # near π: axis from the symmetric part
+        M = (R + np.eye(3)) / 2.0
+        axis = M[:, np.argmax(np.diag(M))]
+        axis = axis / np.linalg.norm(axis)
+        return a * axis
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return a * w / (2.0 * np.sin(a))
