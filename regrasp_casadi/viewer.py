@@ -1,0 +1,548 @@
+"""Plan viewer: a pure Plan -> keyframes function, and thin Meshcat front ends (live view, static HTML).
+
+`plan_keyframes` turns a `Plan` into a list of `Keyframe`s — every link pose, the object pose and the
+current contacts in the palm frame at a given time — interpolating smoothly between consecutive steps
+(joints linearly with a smoothstep easing, object translation linearly and rotation by slerp), so that
+finger gaits and reposings are visible. There is one keyframe exactly at each step.
+
+`show` (live viewer on localhost) and `write_html` (one self-contained HTML file that plays offline) are
+thin shells over Meshcat, imported lazily inside them (`import regrasp_casadi.viewer` never imports
+meshcat nor starts a server). The scene, drawn in the palm frame:
+
+* the hand, from its URDF visual geometry (boxes, cylinders, spheres, meshes; a link without visuals
+  falls back to its collision geometry), in one colour (`HAND_COLOR`, steel blue);
+* the object mesh (`OBJECT_COLOR`, amber);
+* the desired contacts as green spheres fixed to the object frame (as in the paper's plan figures);
+* the current contacts as red spheres;
+* the step number, kind and moved finger as a text label (a Meshcat `_text` canvas texture on a plane
+  attached to the camera, so it stays in view), one label per step whose `visible` flag is animated;
+  the HTML `<title>` names the plan (steps, method, status).
+
+Only transforms and visibility are animated; geometry is sent once. The static scene (before and after
+the animation) shows the final step. The static HTML is produced without a Meshcat server: the commands
+are recorded in-process and assembled the way Meshcat's own `static_html()` does.
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import io
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation, Slerp
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.grasp import Plan
+    from regrasp_casadi.hand import Hand
+
+__all__ = ["Keyframe", "plan_keyframes", "step_times", "write_html", "show", "scene_html"]
+
+logger = logging.getLogger(__name__)
+
+HAND_COLOR = 0x3366CC       # steel blue
+OBJECT_COLOR = 0xF2A93B     # amber
+GOAL_COLOR = 0x22BB33       # green: desired contacts
+CONTACT_COLOR = 0xE02020    # red: current contacts
+GOAL_RADIUS = 0.004         # m
+CONTACT_RADIUS = 0.0035     # m
+
+_ROOT = "/regrasp"
+_LABELS = "/Cameras/default/rotated/<object>/labels"
+_CAMERA_FOV_DEG = 75.0      # Meshcat's default perspective camera
+
+LIVE_VIEWERS: list = []     # live visualizers started by `show` (kept alive here)
+
+
+@dataclass(frozen=True)
+class Keyframe:
+    """The scene at one instant of the replay (palm frame).
+
+    Attributes:
+        time: time since the start of the replay, s.
+        step: index of the plan step being moved into (the segment from step i-1 to step i belongs to
+            step i); at a step time, exactly that step.
+        alpha: progress from step `step - 1` to step `step`, in [0, 1] (1 at the step itself; 1 for step 0).
+        kind: `plan.steps[step].kind` ("initial" | "gait" | "repose" | "final").
+        finger: `plan.steps[step].finger` (the finger moved by a gait, else None).
+        q: (n,) joint angles, rad.
+        T_palm_link: link name -> (4, 4) pose of the link in the palm frame, for every link of the hand.
+        T_palm_object: (4, 4) object pose in the palm frame.
+        p_palm_contacts: (m, 3) current contact points in the palm frame, m, rows in `plan.fingers` order.
+    """
+
+    time: float
+    step: int
+    alpha: float
+    kind: str
+    finger: str | None
+    q: NDArray
+    T_palm_link: dict[str, NDArray]
+    T_palm_object: NDArray
+    p_palm_contacts: NDArray
+
+
+def _smoothstep(u: float) -> float:
+    """3u² − 2u³: eases in and out, equals u at 0, 0.5 and 1."""
+    return u * u * (3.0 - 2.0 * u)
+
+
+def step_times(plan: Plan, seconds_per_step: float = 0.8) -> NDArray:
+    """Time of each step in the replay: `i * seconds_per_step`, s, shape (len(plan.steps),)."""
+    return np.arange(len(plan.steps), dtype=float) * float(seconds_per_step)
+
+
+def plan_keyframes(
+    plan: Plan,
+    hand: Hand | None = None,
+    obj: ObjectModel | None = None,
+    fps: float = 30,
+    seconds_per_step: float = 0.8,
+    easing: bool = True,
+) -> list[Keyframe]:
+    """Keyframes of the replay of `plan`, with one keyframe exactly at each step.
+
+    Between step i-1 (time (i-1)·Δ) and step i (time i·Δ, Δ = `seconds_per_step`) there are
+    `k = max(1, round(fps·Δ))` frames at `u = j/k`, j = 1..k; with `s = smoothstep(u)` (or `s = u` without
+    easing): `q(s) = (1-s) q_{i-1} + s q_i`; object translation `(1-s) t_{i-1} + s t_i`, rotation
+    `slerp(R_{i-1}, R_i, s)`; contacts `T_palm_object(s) · ((1-s) c_{i-1} + s c_i)` with `c` in the object
+    frame. Links come from `hand.fk(q)`.
+
+    Args:
+        plan: the plan to replay.
+        hand: the plan's hand (default `plan.hand()`).
+        obj: the plan's object (default `plan.object()`; unused for the poses, accepted for symmetry).
+        fps: frames per second of the interpolation (> 0).
+        seconds_per_step: replay duration of one step, s (> 0).
+        easing: smoothstep easing between steps (True) or constant speed (False).
+
+    Returns:
+        `1 + (len(plan.steps) - 1) * k` keyframes in time order.
+
+    Raises:
+        ValueError: empty plan or non-positive fps / seconds_per_step.
+    """
+    if not plan.steps:
+        raise ValueError("plan has no steps")
+    if fps <= 0 or seconds_per_step <= 0:
+        raise ValueError(f"fps and seconds_per_step must be positive, got {fps} and {seconds_per_step}")
+    hand = plan.hand() if hand is None else hand
+    k = max(1, int(round(fps * seconds_per_step)))
+    times = step_times(plan, seconds_per_step)
+
+    def frame(i: int, u: float) -> Keyframe:
+        step = plan.steps[i]
+        s = (_smoothstep(u) if easing else u) if i > 0 else 1.0
+        if i == 0 or u >= 1.0:
+            q = np.asarray(step.q, dtype=float)
+            T_po = np.asarray(step.T_palm_object, dtype=float)
+            c_obj = np.asarray(step.contacts_object, dtype=float)
+            t = float(times[i])
+        else:
+            prev = plan.steps[i - 1]
+            q = (1.0 - s) * np.asarray(prev.q, float) + s * np.asarray(step.q, float)
+            T0 = np.asarray(prev.T_palm_object, float)
+            T1 = np.asarray(step.T_palm_object, float)
+            slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([T0[:3, :3], T1[:3, :3]])))
+            T_po = np.eye(4)
+            T_po[:3, :3] = slerp([s]).as_matrix()[0]
+            T_po[:3, 3] = (1.0 - s) * T0[:3, 3] + s * T1[:3, 3]
+            c_obj = (1.0 - s) * np.asarray(prev.contacts_object, float) + s * np.asarray(
+                step.contacts_object, float
+            )
+            t = float(times[i - 1] + u * (times[i] - times[i - 1]))
+        p_palm = c_obj @ T_po[:3, :3].T + T_po[:3, 3]
+        T_links = {name: np.asarray(T, dtype=float) for name, T in hand.fk(q).items()}
+        return Keyframe(
+            time=t, step=i, alpha=float(u) if i > 0 else 1.0, kind=step.kind, finger=step.finger, q=q,
+            T_palm_link=T_links, T_palm_object=T_po, p_palm_contacts=p_palm,
+        )
+
+    frames = [frame(0, 1.0)]
+    for i in range(1, len(plan.steps)):
+        frames.extend(frame(i, j / k) for j in range(1, k + 1))
+    return frames
+
+
+# --------------------------------------------------------------------------------------------------------
+# Scene description (pure): visual geometry of the hand read from its URDF.
+
+
+@dataclass(frozen=True)
+class VisualShape:
+    """One visual primitive of a link: kind "box" (size (3,)), "cylinder" (radius, length along z),
+    "sphere" (radius) or "mesh" (vertices (v,3), faces (f,3)), placed by T_link_visual (4, 4), m."""
+
+    link: str
+    kind: str
+    T_link_visual: NDArray
+    params: dict[str, Any]
+
+
+def hand_visuals(hand: Hand) -> list[VisualShape]:
+    """Visual shapes of every link of `hand`, read from its URDF with yourdfpy (collision geometry for a
+    link that has no visual)."""
+    import trimesh
+    import yourdfpy
+
+    urdf_path = Path(hand.urdf_path)
+    robot = yourdfpy.URDF.load(
+        str(urdf_path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False
+    )
+    shapes: list[VisualShape] = []
+    for link in robot.robot.links:
+        elements = list(link.visuals) or list(link.collisions)
+        for el in elements:
+            g = el.geometry
+            T = np.eye(4) if el.origin is None else np.asarray(el.origin, dtype=float)
+            if g.box is not None:
+                shapes.append(VisualShape(link.name, "box", T, {"size": np.asarray(g.box.size, float)}))
+            elif g.cylinder is not None:
+                shapes.append(VisualShape(link.name, "cylinder", T,
+                                          {"radius": float(g.cylinder.radius),
+                                           "length": float(g.cylinder.length)}))
+            elif g.sphere is not None:
+                shapes.append(VisualShape(link.name, "sphere", T, {"radius": float(g.sphere.radius)}))
+            elif g.mesh is not None:
+                fname = g.mesh.filename
+                for prefix in ("package://", "file://"):
+                    if fname.startswith(prefix):
+                        fname = fname[len(prefix):]
+                path = Path(fname) if Path(fname).is_absolute() else urdf_path.parent / fname
+                if not path.exists():
+                    logger.warning("visual mesh %s of link %s not found; skipped", path, link.name)
+                    continue
+                mesh = trimesh.load(str(path), force="mesh")
+                scale = np.ones(3) if g.mesh.scale is None else np.broadcast_to(
+                    np.asarray(g.mesh.scale, float), (3,))
+                shapes.append(VisualShape(link.name, "mesh", T,
+                                          {"vertices": np.asarray(mesh.vertices) * scale,
+                                           "faces": np.asarray(mesh.faces)}))
+    return shapes
+
+
+def _scene_bounds(frames: list[Keyframe], obj: ObjectModel) -> tuple[NDArray, float]:
+    """Centre (3,) and radius (m) of a sphere holding every link origin and the object at every step."""
+    pts = []
+    verts = np.asarray(obj.mesh.bounds, dtype=float)  # (2,3) corners are enough for framing
+    corners = np.array([[verts[i, 0], verts[j, 1], verts[k, 2]]
+                        for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    for f in frames:
+        pts.extend(T[:3, 3] for T in f.T_palm_link.values())
+        pts.extend(corners @ f.T_palm_object[:3, :3].T + f.T_palm_object[:3, 3])
+    pts = np.asarray(pts)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    center = 0.5 * (lo + hi)
+    radius = float(max(np.linalg.norm(pts - center, axis=1).max(), 0.05))
+    return center, radius
+
+
+def camera_offset(frames: list[Keyframe], center: NDArray, radius: float) -> NDArray:
+    """Camera position relative to the scene centre (palm frame, m): on the side where the object lies
+    (the palm side), raised and turned a little, at a distance that fits a sphere of `radius`."""
+    hand_c = np.mean([T[:3, 3] for T in frames[0].T_palm_link.values()], axis=0)
+    u = frames[0].T_palm_object[:3, 3] - hand_c
+    u = u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-6 else np.array([1.0, 0.0, 0.0])
+    side = np.cross(np.array([0.0, 0.0, 1.0]), u)
+    side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.array([0.0, 1.0, 0.0])
+    v = u + 0.8 * side + 0.45 * np.array([0.0, 0.0, 1.0])
+    v /= np.linalg.norm(v)
+    dist = 1.25 * radius / np.tan(np.radians(_CAMERA_FOV_DEG) / 2.0)
+    return v * dist
+
+
+def step_label(plan: Plan, i: int) -> str:
+    """Text shown during step i, e.g. "step 3/12  gait: index"."""
+    st = plan.steps[i]
+    text = f"step {i}/{len(plan.steps) - 1}  {st.kind}"
+    return text + (f": {st.finger}" if st.finger else "")
+
+
+# --------------------------------------------------------------------------------------------------------
+# Meshcat front ends (meshcat imported lazily).
+
+
+class _RecordingWindow:
+    """Stands in for meshcat's ViewerWindow: keeps the scene tree in-process and renders static HTML the
+    way meshcat's server does for `get_scene` (no server, no port)."""
+
+    def __init__(self) -> None:
+        from meshcat.servers.tree import SceneTree
+
+        self.tree = SceneTree()
+        self.web_url = ""
+
+    def send(self, command) -> None:
+        import umsgpack
+        from meshcat.servers.tree import find_node
+
+        data = command.lower()
+        packed = umsgpack.packb(data, force_float_precision="single")
+        path = [p for p in data["path"].split("/") if p]
+        node = find_node(self.tree, path)
+        kind = data["type"]
+        if kind == "set_object":
+            node.object, node.properties = packed, []
+        elif kind == "set_transform":
+            node.transform = packed
+        elif kind == "set_property":
+            node.properties.append(packed)
+        elif kind == "set_animation":
+            node.animation = packed
+        else:  # pragma: no cover - not used by this module
+            raise ValueError(f"unsupported meshcat command {kind}")
+
+    def get_scene(self) -> str:
+        from meshcat.servers.tree import walk
+
+        def cmd(data: bytes) -> str:
+            return ('\nfetch("data:application/octet-binary;base64,{}")\n.then(res => res.arrayBuffer())\n'
+                    '.then(buffer => viewer.handle_command_bytearray(new Uint8Array(buffer)));\n'
+                    ).format(base64.b64encode(data).decode("utf-8"))
+
+        commands = []
+        for node in walk(self.tree):
+            if node.object is not None:
+                commands.append(cmd(node.object))
+            commands.extend(cmd(p) for p in node.properties)
+            if node.transform is not None:
+                commands.append(cmd(node.transform))
+            if node.animation is not None:
+                commands.append(cmd(node.animation))
+        import meshcat
+
+        js = (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text(encoding="utf-8")
+        return _HTML_TEMPLATE.format(mainminjs=js, commands="".join(commands))
+
+
+_HTML_TEMPLATE = """<!DOCTYPE html>
+<html>
+<head> <meta charset=utf-8> <title>MeshCat</title> </head>
+<body>
+<div id="meshcat-pane"></div>
+<script>
+{mainminjs}
+</script>
+<script>
+var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+{commands}
+</script>
+<style> body {{margin: 0; }} #meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }} </style>
+<script id="embedded-json"></script>
+</body>
+</html>
+"""
+
+
+def _meshcat_classes():
+    """Two Meshcat element types missing from meshcat-python 0.3.2 but drawn by its viewer: a text canvas
+    texture (`_text`) and a plane geometry."""
+    import meshcat.geometry as g
+
+    class TextTexture(g.Texture):
+        def __init__(self, text: str, font_size: int = 48, font_face: str = "sans-serif"):
+            super().__init__()
+            self.text, self.font_size, self.font_face = text, font_size, font_face
+
+        def lower(self, object_data):
+            return {"uuid": self.uuid, "type": "_text", "text": self.text,
+                    "font_size": self.font_size, "font_face": self.font_face}
+
+    class Plane(g.Geometry):
+        def __init__(self, width: float, height: float):
+            super().__init__()
+            self.width, self.height = width, height
+
+        def lower(self, object_data):
+            return {"uuid": self.uuid, "type": "PlaneGeometry", "width": self.width, "height": self.height,
+                    "widthSegments": 1, "heightSegments": 1}
+
+    return TextTexture, Plane
+
+
+def _rot_x90() -> NDArray:
+    T = np.eye(4)
+    T[1:3, 1:3] = [[0.0, -1.0], [1.0, 0.0]]
+    return T
+
+
+def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Keyframe], fps: float) -> None:
+    """Send geometry once, the final step as the static pose, and the animation of transforms."""
+    import meshcat.animation as mca
+    import meshcat.geometry as g
+
+    TextTexture, Plane = _meshcat_classes()
+    center, radius = _scene_bounds(frames, obj)
+    T_world_palm = np.eye(4)
+    T_world_palm[:3, 3] = -center   # the scene centre at the origin, where the camera looks
+
+    vis["/Grid"].set_property("visible", False)
+    vis["/Axes"].set_property("visible", False)
+    vis["/Background"].set_property("top_color", [1.0, 1.0, 1.0])
+    vis["/Background"].set_property("bottom_color", [1.0, 1.0, 1.0])
+    off = camera_offset(frames, center, radius)
+    vis["/Cameras/default"].set_transform(np.eye(4))
+    # the camera lives in a frame rotated +90° about x (three.js y-up): world (a, b, c) -> (a, c, -b)
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [off[0], off[2], -off[1]])
+    root = vis[_ROOT]
+    root.set_transform(T_world_palm)
+
+    hand_mat = g.MeshLambertMaterial(color=HAND_COLOR)
+    for n, sh in enumerate(hand_visuals(hand)):
+        node = root["hand"][sh.link][f"v{n}"]
+        T = sh.T_link_visual
+        if sh.kind == "box":
+            geom = g.Box(list(sh.params["size"]))
+        elif sh.kind == "sphere":
+            geom = g.Sphere(sh.params["radius"])
+        elif sh.kind == "cylinder":  # three.js cylinders run along y, URDF ones along z
+            geom = g.Cylinder(sh.params["length"], sh.params["radius"])
+            T = T @ _rot_x90()
+        else:
+            geom = g.TriangularMeshGeometry(sh.params["vertices"], sh.params["faces"])
+        node.set_object(geom, hand_mat)
+        node.set_transform(T)
+
+    mesh = obj.mesh
+    root["object"]["mesh"].set_object(
+        g.TriangularMeshGeometry(np.asarray(mesh.vertices), np.asarray(mesh.faces)),
+        g.MeshLambertMaterial(color=OBJECT_COLOR))
+    goal_geom, goal_mat = g.Sphere(GOAL_RADIUS), g.MeshLambertMaterial(color=GOAL_COLOR)
+    for r, p in enumerate(np.asarray(plan.goal_contacts_object, dtype=float)):
+        node = root["object"]["goal_contacts"][str(plan.fingers[r])]
+        node.set_object(goal_geom, goal_mat)
+        T = np.eye(4)
+        T[:3, 3] = p
+        node.set_transform(T)
+    contact_geom, contact_mat = g.Sphere(CONTACT_RADIUS), g.MeshLambertMaterial(color=CONTACT_COLOR)
+    for finger in plan.fingers:
+        root["contacts"][str(finger)].set_object(contact_geom, contact_mat)
+
+    # labels: one textured plane per step attached to the camera (a HUD), visible during its step only
+    dist = 0.25 * float(np.linalg.norm(off))   # in front of the scene: never hidden by it
+    half_h = dist * np.tan(np.radians(_CAMERA_FOV_DEG) / 2.0)
+    size = 0.6 * half_h
+    T_cam_label = np.eye(4)
+    T_cam_label[:3, 3] = [-1.25 * half_h + size / 2, half_h - size * 0.3, -dist]
+    n_steps = len(plan.steps)
+    for i in range(n_steps):
+        node = vis[_LABELS][f"step_{i}"]
+        node.set_object(Plane(size, size),
+                        g.MeshBasicMaterial(map=TextTexture(step_label(plan, i)), transparent=True,
+                                            depthTest=False, depthWrite=False))
+        node.set_transform(T_cam_label)
+        node.set_property("visible", i == n_steps - 1)
+
+    def pose(frame_vis, f: Keyframe) -> None:
+        for link, T in f.T_palm_link.items():
+            frame_vis[_ROOT]["hand"][link].set_transform(T)
+        frame_vis[_ROOT]["object"].set_transform(f.T_palm_object)
+        for r, finger in enumerate(plan.fingers):
+            T = np.eye(4)
+            T[:3, 3] = f.p_palm_contacts[r]
+            frame_vis[_ROOT]["contacts"][str(finger)].set_transform(T)
+
+    pose(vis, frames[-1])   # static scene = final step
+    anim = mca.Animation(default_framerate=fps)
+    for f in frames:
+        pose(anim.at_frame(vis, f.time * fps), f)
+    t_steps = [f.time for f in frames if f.alpha >= 1.0]   # the keyframes exactly at the steps
+    for i in range(n_steps):   # boolean tracks are discrete: label i is on from step i to step i+1
+        keys = [(0.0, i == 0), (t_steps[i], True)]
+        if i + 1 < n_steps:
+            keys.append((t_steps[i + 1], False))
+        for t, visible in keys:
+            anim.at_frame(vis, t * fps)[_LABELS][f"step_{i}"].set_property("visible", "boolean", visible)
+    _compact(anim)
+    vis.set_animation(anim, play=True, repetitions=1)
+
+
+def _compact(anim, tol: float = 1e-7) -> None:
+    """Drop interior keys of constant runs (three.js interpolates between the kept ones)."""
+    for clip in anim.clips.values():
+        for track in clip.tracks.values():
+            fr, va = track.frames, track.values
+            if len(fr) < 3:
+                continue
+            keep_f, keep_v = [fr[0]], [va[0]]
+            for j in range(1, len(fr) - 1):
+                same_prev = np.allclose(np.asarray(va[j], float), np.asarray(va[j - 1], float), atol=tol)
+                same_next = np.allclose(np.asarray(va[j], float), np.asarray(va[j + 1], float), atol=tol)
+                if not (same_prev and same_next):
+                    keep_f.append(fr[j])
+                    keep_v.append(va[j])
+            keep_f.append(fr[-1])
+            keep_v.append(va[-1])
+            track.frames, track.values = keep_f, keep_v
+
+
+def _title(plan: Plan, obj: ObjectModel) -> str:
+    return (f"regrasp replay: {obj.name}, {len(plan.steps)} steps, method {plan.method}, "
+            f"{plan.status}, {plan.iterations} iterations")
+
+
+def scene_html(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, fps: float = 12,
+               seconds_per_step: float = 0.8) -> str:
+    """The self-contained HTML replay of `plan` as a string (see `write_html`)."""
+    import meshcat
+
+    hand = plan.hand() if hand is None else hand
+    obj = plan.object() if obj is None else obj
+    frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
+    vis = meshcat.Visualizer(window=_RecordingWindow())
+    _build_scene(vis, plan, hand, obj, frames, fps)
+    html = vis.static_html()
+    title = _title(plan, obj).replace("&", "&amp;").replace("<", "&lt;")
+    return html.replace("<title>MeshCat</title>", f"<title>{title}</title>", 1)
+
+
+def write_html(plan: Plan, path: str | Path, hand: Hand | None = None, obj: ObjectModel | None = None,
+               fps: float = 12, seconds_per_step: float = 0.8) -> Path:
+    """Write ONE self-contained HTML file (three.js/Meshcat bundle included) that replays `plan` offline.
+
+    Args:
+        plan: the plan.
+        path: output file (parent folders are created).
+        hand, obj: the plan's hand and object (default: rebuilt from the plan's specs).
+        fps: animation keyframes per second (three.js interpolates in between).
+        seconds_per_step: replay duration of one step, s.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    html = scene_html(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
+    path.write_text(html, encoding="utf-8")
+    logger.info("wrote %s (%.0f kB)", path, path.stat().st_size / 1e3)
+    return path
+
+
+def show(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, fps: float = 30,
+         seconds_per_step: float = 0.8, zmq_url: str | None = None):
+    """Start a live Meshcat viewer on localhost, load the scene and play the plan.
+
+    Meshcat's own start-up message is swallowed; nothing is printed.
+
+    Returns:
+        The URL to open in a browser. The Meshcat server runs in a subprocess that ends with this Python
+        process; the visualizer is kept in `viewer.LIVE_VIEWERS`.
+    """
+    import meshcat
+
+    hand = plan.hand() if hand is None else hand
+    obj = plan.object() if obj is None else obj
+    frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
+    with contextlib.redirect_stdout(io.StringIO()):
+        vis = meshcat.Visualizer(zmq_url=zmq_url)
+    _build_scene(vis, plan, hand, obj, frames, fps)
+    LIVE_VIEWERS.append(vis)
+    return vis.url()
+
+
