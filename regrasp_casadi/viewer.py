@@ -29,6 +29,7 @@ import base64
 import contextlib
 import io
 import logging
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -53,7 +54,7 @@ CONTACT_COLOR = 0xE02020    # red: current contacts
 GOAL_RADIUS = 0.004         # m
 CONTACT_RADIUS = 0.0035     # m
 
-_ROOT = "/regrasp"
+_ROOT = "regrasp"          # under /meshcat
 _LABELS = "/Cameras/default/rotated/<object>/labels"
 _CAMERA_FOV_DEG = 75.0      # Meshcat's default perspective camera
 
@@ -110,9 +111,9 @@ def plan_keyframes(
 
     Between step i-1 (time (i-1)·Δ) and step i (time i·Δ, Δ = `seconds_per_step`) there are
     `k = max(1, round(fps·Δ))` frames at `u = j/k`, j = 1..k; with `s = smoothstep(u)` (or `s = u` without
-    easing): `q(s) = (1-s) q_{i-1} + s q_i`; object translation `(1-s) t_{i-1} + s t_i`, rotation
-    `slerp(R_{i-1}, R_i, s)`; contacts `T_palm_object(s) · ((1-s) c_{i-1} + s c_i)` with `c` in the object
-    frame. Links come from `hand.fk(q)`.
+    easing): `q(s) = q_{i-1} + s (q_i - q_{i-1})`; object translation `t_{i-1} + s (t_i - t_{i-1})`,
+    rotation `slerp(R_{i-1}, R_i, s)`; contacts `T_palm_object(s) · (c_{i-1} + s (c_i - c_{i-1}))` with
+    `c` in the object frame. Links come from `hand.fk(q)`.
 
     Args:
         plan: the plan to replay.
@@ -146,16 +147,19 @@ def plan_keyframes(
             t = float(times[i])
         else:
             prev = plan.steps[i - 1]
-            q = (1.0 - s) * np.asarray(prev.q, float) + s * np.asarray(step.q, float)
+            q0, q1 = np.asarray(prev.q, float), np.asarray(step.q, float)
+            q = q0 + s * (q1 - q0)   # exact where a joint does not move
             T0 = np.asarray(prev.T_palm_object, float)
             T1 = np.asarray(step.T_palm_object, float)
-            slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([T0[:3, :3], T1[:3, :3]])))
-            T_po = np.eye(4)
-            T_po[:3, :3] = slerp([s]).as_matrix()[0]
-            T_po[:3, 3] = (1.0 - s) * T0[:3, 3] + s * T1[:3, 3]
-            c_obj = (1.0 - s) * np.asarray(prev.contacts_object, float) + s * np.asarray(
-                step.contacts_object, float
-            )
+            if np.array_equal(T0, T1):
+                T_po = T0.copy()
+            else:
+                slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([T0[:3, :3], T1[:3, :3]])))
+                T_po = np.eye(4)
+                T_po[:3, :3] = slerp([s]).as_matrix()[0]
+                T_po[:3, 3] = T0[:3, 3] + s * (T1[:3, 3] - T0[:3, 3])
+            c0 = np.asarray(prev.contacts_object, float)
+            c_obj = c0 + s * (np.asarray(step.contacts_object, float) - c0)
             t = float(times[i - 1] + u * (times[i] - times[i - 1]))
         p_palm = c_obj @ T_po[:3, :3].T + T_po[:3, 3]
         T_links = {name: np.asarray(T, dtype=float) for name, T in hand.fk(q).items()}
@@ -273,6 +277,7 @@ class _RecordingWindow:
     way meshcat's server does for `get_scene` (no server, no port)."""
 
     def __init__(self) -> None:
+        _import_meshcat()
         from meshcat.servers.tree import SceneTree
 
         self.tree = SceneTree()
@@ -338,6 +343,17 @@ var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
 </body>
 </html>
 """
+
+
+def _import_meshcat():
+    """Import meshcat (lazily), silencing the deprecation warning its zmq server module raises."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import meshcat
+        import meshcat.animation  # noqa: F401
+        import meshcat.geometry  # noqa: F401
+        import meshcat.servers.tree  # noqa: F401
+    return meshcat
 
 
 def _meshcat_classes():
@@ -454,10 +470,10 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
         pose(anim.at_frame(vis, f.time * fps), f)
     t_steps = [f.time for f in frames if f.alpha >= 1.0]   # the keyframes exactly at the steps
     for i in range(n_steps):   # boolean tracks are discrete: label i is on from step i to step i+1
-        keys = [(0.0, i == 0), (t_steps[i], True)]
+        keys = {0.0: False, t_steps[i]: True}
         if i + 1 < n_steps:
-            keys.append((t_steps[i + 1], False))
-        for t, visible in keys:
+            keys[t_steps[i + 1]] = False
+        for t, visible in keys.items():
             anim.at_frame(vis, t * fps)[_LABELS][f"step_{i}"].set_property("visible", "boolean", visible)
     _compact(anim)
     vis.set_animation(anim, play=True, repetitions=1)
@@ -490,8 +506,7 @@ def _title(plan: Plan, obj: ObjectModel) -> str:
 def scene_html(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, fps: float = 12,
                seconds_per_step: float = 0.8) -> str:
     """The self-contained HTML replay of `plan` as a string (see `write_html`)."""
-    import meshcat
-
+    meshcat = _import_meshcat()
     hand = plan.hand() if hand is None else hand
     obj = plan.object() if obj is None else obj
     frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
@@ -534,8 +549,7 @@ def show(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, f
         The URL to open in a browser. The Meshcat server runs in a subprocess that ends with this Python
         process; the visualizer is kept in `viewer.LIVE_VIEWERS`.
     """
-    import meshcat
-
+    meshcat = _import_meshcat()
     hand = plan.hand() if hand is None else hand
     obj = plan.object() if obj is None else obj
     frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)

@@ -1,0 +1,240 @@
+"""Viewer tests without a browser: keyframes (timing, transforms, interpolation) and the Meshcat scene.
+
+Transforms are compared against yourdfpy's own FK (independent of the CasADi FK the viewer uses), the
+object pose against the plan, and interpolation against closed forms (smoothstep(½) = ½, slerp halves
+the rotation angle). The scene is inspected through the recorded Meshcat commands (msgpack), so the
+desired-contact markers are checked where the HTML puts them.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from regrasp_casadi.grasp import Plan, PlanStep
+from regrasp_casadi.transforms import make_T, rot_axis_angle, rotation_angle
+
+viewer = pytest.importorskip("regrasp_casadi.viewer")
+
+
+def make_plan(hand, n_steps: int = 3) -> Plan:
+    """A hand-built plan: initial grasp, an index-finger gait, then a reposing (object turned 30° about z
+    and moved 1 cm). Contacts are the tip centres in the object frame (the viewer does not need them on
+    the surface)."""
+    q0 = 0.5 * (hand.q_lower + hand.q_upper)
+    T0 = make_T(rot_axis_angle([0, 1, 0], 0.2), [0.09, 0.0, 0.07])
+    qs, Ts = [q0], [T0]
+    q1 = q0.copy()
+    q1[hand.finger_joints["index"]] += 0.15
+    qs.append(q1)
+    Ts.append(T0)
+    T2 = make_T(rot_axis_angle([0, 0, 1], np.radians(30)) @ T0[:3, :3], T0[:3, 3] + [0, 0.01, 0])
+    q2 = q1 + 0.05
+    qs.append(np.clip(q2, hand.q_lower, hand.q_upper))
+    Ts.append(T2)
+    kinds = ["initial", "gait", "repose", "final", "gait"]
+    fingers = [None, "index", None, None, "thumb"]
+    steps = []
+    for i in range(n_steps):
+        q, T = qs[min(i, 2)], Ts[min(i, 2)]
+        tips = hand.tip_positions(q)  # (m, 3) palm frame
+        c_obj = (tips - T[:3, 3]) @ T[:3, :3]
+        steps.append(PlanStep(kind=kinds[i], finger=fingers[i], q=q, T_palm_object=T,
+                              contacts_object=c_obj, contact_error=np.zeros(len(hand.fingers)),
+                              solver_status="" if i == 0 else "Solve_Succeeded", solve_time=0.0))
+    goal = steps[0].contacts_object + np.array([0.0, 0.0, 0.01])
+    return Plan(steps=tuple(steps), goal_contacts_object=goal, goal_T_palm_object=Ts[-1],
+                fingers=tuple(hand.fingers), hand_spec=hand.spec(),
+                object_spec={"primitive": "box", "extents": [0.05, 0.06, 0.12]}, method="svd",
+                status="converged", status_detail="", iterations=1, iteration_errors=np.zeros(2),
+                timing={"total": 0.0}, options={})
+
+
+@pytest.fixture(scope="module")
+def obj():
+    from regrasp_casadi.geometry import ObjectModel
+
+    return ObjectModel.box((0.05, 0.06, 0.12))
+
+
+@pytest.fixture(scope="module")
+def plan(hand):
+    return make_plan(hand)
+
+
+@pytest.fixture(scope="module")
+def yourdfpy_fk(hand):
+    import yourdfpy
+
+    robot = yourdfpy.URDF.load(str(hand.urdf_path), build_scene_graph=True, load_meshes=False)
+
+    def fk(q):
+        robot.update_cfg(dict(zip(hand.joint_names, np.asarray(q, float), strict=True)))
+        return {link: robot.get_transform(link, hand.root_link) for link in hand.link_names}
+
+    return fk
+
+
+def test_one_keyframe_exactly_at_each_step(plan, hand, obj):
+    fps, sps = 30, 0.8
+    frames = viewer.plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=sps)
+    k = round(fps * sps)
+    assert len(frames) == 1 + (len(plan.steps) - 1) * k
+    at_steps = [f for f in frames if f.alpha == 1.0]
+    assert [f.step for f in at_steps] == list(range(len(plan.steps)))
+    assert [f.time for f in at_steps] == pytest.approx([i * sps for i in range(len(plan.steps))], abs=1e-12)
+    assert [f.kind for f in at_steps] == [s.kind for s in plan.steps]
+    assert [f.finger for f in at_steps] == [s.finger for s in plan.steps]
+    times = np.array([f.time for f in frames])
+    assert np.all(np.diff(times) > 0)
+    assert np.diff(times) == pytest.approx(np.full(len(times) - 1, 1.0 / fps))
+
+
+def test_transforms_at_step_times_equal_the_plan(plan, hand, obj, yourdfpy_fk):
+    frames = viewer.plan_keyframes(plan, hand, obj, fps=10, seconds_per_step=0.5)
+    for f in (f for f in frames if f.alpha == 1.0):
+        step = plan.steps[f.step]
+        np.testing.assert_array_equal(f.q, step.q)
+        np.testing.assert_array_equal(f.T_palm_object, step.T_palm_object)
+        ref = yourdfpy_fk(step.q)
+        assert set(f.T_palm_link) >= set(hand.link_names)
+        for link in hand.link_names:
+            np.testing.assert_allclose(f.T_palm_link[link], ref[link], atol=1e-9)
+        T = step.T_palm_object
+        np.testing.assert_allclose(f.p_palm_contacts, step.contacts_object @ T[:3, :3].T + T[:3, 3],
+                                   atol=1e-12)
+        # the contacts were made from the tips: at a step they sit on the tip centres
+        np.testing.assert_allclose(f.p_palm_contacts, hand.tip_positions(step.q), atol=1e-9)
+
+
+def test_midpoint_interpolation(plan, hand, obj):
+    fps, sps = 10, 1.0   # 10 frames per step: frame 5 of a segment is its midpoint
+    frames = viewer.plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=sps)
+    s1, s2 = plan.steps[1], plan.steps[2]
+    mid = next(f for f in frames if f.step == 2 and f.alpha == pytest.approx(0.5))
+    assert mid.time == pytest.approx(1.5)
+    np.testing.assert_allclose(mid.q, 0.5 * (s1.q + s2.q), atol=1e-12)   # smoothstep(1/2) = 1/2
+    T1, T2, Tm = s1.T_palm_object, s2.T_palm_object, mid.T_palm_object
+    np.testing.assert_allclose(Tm[:3, 3], 0.5 * (T1[:3, 3] + T2[:3, 3]), atol=1e-12)
+    full = rotation_angle(T1[:3, :3], T2[:3, :3])
+    assert full == pytest.approx(np.radians(30), abs=1e-9)
+    assert rotation_angle(T1[:3, :3], Tm[:3, :3]) == pytest.approx(full / 2, abs=1e-9)
+    assert rotation_angle(Tm[:3, :3], T2[:3, :3]) == pytest.approx(full / 2, abs=1e-9)
+    np.testing.assert_allclose(Tm[:3, :3] @ Tm[:3, :3].T, np.eye(3), atol=1e-12)
+    c_mid = 0.5 * (s1.contacts_object + s2.contacts_object)
+    np.testing.assert_allclose(mid.p_palm_contacts, c_mid @ Tm[:3, :3].T + Tm[:3, 3], atol=1e-12)
+
+
+def test_gait_moves_only_its_finger_and_eases_monotonically(plan, hand, obj):
+    frames = viewer.plan_keyframes(plan, hand, obj, fps=30, seconds_per_step=0.8)
+    seg = [f for f in frames if f.step == 1]
+    moving = hand.finger_joints["index"]
+    still = np.setdiff1d(np.arange(hand.n_joints), moving)
+    q0, q1 = plan.steps[0].q, plan.steps[1].q
+    progress = [(f.q[moving] - q0[moving]) / (q1[moving] - q0[moving]) for f in seg]
+    for p in progress:
+        assert np.allclose(p, p[0])            # all joints of the finger on the same straight line
+    p = np.array([x[0] for x in progress])
+    assert np.all(np.diff(p) > 0) and p[-1] == pytest.approx(1.0)
+    assert p[0] < 1.0 / len(seg)               # smoothstep starts slower than constant speed
+    for f in seg:
+        np.testing.assert_array_equal(f.q[still], q0[still])
+        np.testing.assert_array_equal(f.T_palm_object, plan.steps[0].T_palm_object)
+
+
+def test_linear_option_and_bad_arguments(plan, hand, obj):
+    frames = viewer.plan_keyframes(plan, hand, obj, fps=4, seconds_per_step=1.0, easing=False)
+    first = next(f for f in frames if f.step == 1)
+    np.testing.assert_allclose(first.q, 0.75 * plan.steps[0].q + 0.25 * plan.steps[1].q, atol=1e-12)
+    with pytest.raises(ValueError):
+        viewer.plan_keyframes(plan, hand, obj, fps=0)
+    single = make_plan(hand, n_steps=1)
+    assert len(viewer.plan_keyframes(single, hand, obj)) == 1
+
+
+def _recorded_scene(plan, hand, obj, fps=8, sps=0.5):
+    meshcat = viewer._import_meshcat()
+    window = viewer._RecordingWindow()
+    vis = meshcat.Visualizer(window=window)
+    frames = viewer.plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=sps)
+    viewer._build_scene(vis, plan, hand, obj, frames, fps)
+    return window, frames
+
+
+def _node(window, path: str):
+    from meshcat.servers.tree import find_node
+
+    return find_node(window.tree, [p for p in path.split("/") if p])
+
+
+def _unpack(data):
+    import umsgpack
+
+    return umsgpack.unpackb(data)
+
+
+def test_desired_contacts_are_fixed_in_the_object_frame(plan, hand, obj):
+    window, _ = _recorded_scene(plan, hand, obj)
+    for r, finger in enumerate(plan.fingers):
+        node = _node(window, f"/meshcat/regrasp/object/goal_contacts/{finger}")
+        T = np.array(_unpack(node.transform)["matrix"], dtype=float).reshape(4, 4).T  # column-major
+        np.testing.assert_allclose(T[:3, 3], plan.goal_contacts_object[r], atol=1e-7)
+        np.testing.assert_allclose(T[:3, :3], np.eye(3), atol=1e-7)
+        geom = _unpack(node.object)["object"]["geometries"][0]
+        assert geom["type"] == "SphereGeometry" and geom["radius"] == pytest.approx(viewer.GOAL_RADIUS)
+        assert _unpack(node.object)["object"]["materials"][0]["color"] == viewer.GOAL_COLOR
+    # the markers are children of the animated object node, so they move with the object
+    anim = _unpack(window.tree.animation)
+    animated = {a["path"] for a in anim["animations"]}
+    assert "/meshcat/regrasp/object" in animated
+    assert not any("goal_contacts" in p for p in animated)
+
+
+def test_animation_tracks_match_keyframes(plan, hand, obj):
+    fps = 8
+    window, frames = _recorded_scene(plan, hand, obj, fps=fps)
+    anim = {a["path"]: a["clip"] for a in _unpack(window.tree.animation)["animations"]}
+    clip = anim["/meshcat/regrasp/object"]
+    pos = next(t for t in clip["tracks"] if t["name"] == ".position")
+    quat = next(t for t in clip["tracks"] if t["name"] == ".quaternion")
+    for f in frames:
+        key = next((k for k in pos["keys"] if k["time"] == pytest.approx(f.time * fps, abs=1e-4)), None)
+        if key is None:   # dropped as an interior key of a constant run
+            continue
+        np.testing.assert_allclose(key["value"], f.T_palm_object[:3, 3], atol=1e-6)
+    last = quat["keys"][-1]["value"]   # xyzw
+    R = Rotation.from_quat(last).as_matrix()
+    assert rotation_angle(R, plan.steps[-1].T_palm_object[:3, :3]) < 1e-5
+    # the index finger's last link is animated with FK poses at the step times
+    link_clip = anim["/meshcat/regrasp/hand/link_3.0_tip"]
+    lpos = next(t for t in link_clip["tracks"] if t["name"] == ".position")
+    for f in (f for f in frames if f.alpha == 1.0):
+        key = next(k for k in lpos["keys"] if k["time"] == pytest.approx(f.time * fps, abs=1e-4))
+        np.testing.assert_allclose(key["value"], f.T_palm_link["link_3.0_tip"][:3, 3], atol=1e-6)
+    # one label per step, visible exactly during its step
+    for i in range(len(plan.steps)):
+        lab = anim[f"/Cameras/default/rotated/<object>/labels/step_{i}"]
+        keys = lab["tracks"][0]["keys"]
+        on = [k["time"] / fps for k in keys if k["value"]]
+        assert on == pytest.approx([i * 0.5])
+        text = _unpack(_node(window, f"/Cameras/default/rotated/<object>/labels/step_{i}").object)["object"]
+        assert text["textures"][0]["text"] == viewer.step_label(plan, i)
+        assert plan.steps[i].kind in text["textures"][0]["text"]
+
+
+def test_write_html_is_one_small_self_contained_file(plan, hand, obj, tmp_path):
+    path = viewer.write_html(plan, tmp_path / "sub" / "replay.html", hand=hand, obj=obj)
+    html = path.read_text(encoding="utf-8")
+    assert path.stat().st_size < 1.5e6
+    assert "MeshCat.Viewer" in html and html.count("<script") >= 2
+    assert "<script src=" not in html             # nothing loaded from elsewhere
+    assert f"{len(plan.steps)} steps" in html.split("<title>")[1].split("</title>")[0]
+
+
+def test_import_viewer_does_not_import_meshcat():
+    code = "import sys, regrasp_casadi.viewer, regrasp_casadi.cli; assert 'meshcat' not in sys.modules"
+    subprocess.run([sys.executable, "-c", code], check=True)
