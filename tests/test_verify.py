@@ -1,0 +1,190 @@
+"""verify(): a valid hand-built plan passes; each planted violation is reported with step, check and who.
+
+The plans use the two-finger test hand of `twofinger.py` holding a box between its tips, so every
+expected distance has a closed form (box contacts are clipped tip centres).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import twofinger as tf
+
+from regrasp_casadi.grasp import Plan, PlanStep
+from regrasp_casadi.verify import verify
+
+GOAL = np.array([[-0.03, 0.0, -0.01], [0.03, 0.0, 0.01]])
+HALF = np.array(tf.BOX_EXTENTS) / 2
+OPTIONS = {"eta": 0.01, "zeta": 0.006, "beta": 0.001}
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory):
+    return tf.make_hand(tmp_path_factory.mktemp("hand")), tf.make_box()
+
+
+def _q(hand, **joints) -> np.ndarray:
+    q = np.zeros(hand.n_joints)
+    for name, v in joints.items():
+        q[hand.joint_names.index(name)] = v
+    return q
+
+
+def _box_contacts(hand, q, T):
+    """Closed-form closest points on the (axis-aligned, object-frame) box of the tip centres."""
+    R, p = T[:3, :3], T[:3, 3]
+    centers = (hand.tip_positions(q) - p) @ R
+    return np.clip(centers, -HALF, HALF)
+
+
+def _plan(hand, obj, specs, status=None) -> Plan:
+    """specs: list of (kind, finger, q, T). Contacts and errors are computed in closed form."""
+    steps = []
+    for kind, finger, q, T in specs:
+        c = _box_contacts(hand, q, T)
+        steps.append(PlanStep(kind, finger, q, T, c, np.linalg.norm(c - GOAL, axis=1),
+                              "" if kind == "initial" else "Solve_Succeeded", 0.001))
+    if status is None:
+        status = "converged" if np.max(steps[-1].contact_error) <= OPTIONS["zeta"] else "iteration_limit"
+    return Plan(steps=tuple(steps), goal_contacts_object=GOAL, goal_T_palm_object=tf.box_pose(dz=0.002),
+                fingers=tuple(hand.fingers), hand_spec=hand.spec(), object_spec=obj.spec, method="svd",
+                status=status, status_detail="", iterations=1,
+                iteration_errors=np.array([0.01, 0.005]), timing={"total": 0.01}, options=dict(OPTIONS))
+
+
+def _valid_specs(hand, gait_left=-0.005, lift_right=0.0, roll0=0.0, follow=True):
+    """initial → gait left → gait right → repose (+4 mm in z) → final (−2 mm in z)."""
+    s1 = _q(hand, left_slide=gait_left)
+    s2 = _q(hand, left_slide=gait_left, right_slide=0.005, right_base=lift_right)
+    d3 = 0.004 if follow else 0.0
+    s3 = _q(hand, left_slide=gait_left + d3, right_slide=0.005 + d3)
+    s4 = _q(hand, left_slide=gait_left + d3 - 0.002, right_slide=0.005 + d3 - 0.002)
+    return [
+        ("initial", None, _q(hand, left_roll=roll0), tf.box_pose()),
+        ("gait", "left", s1, tf.box_pose()),
+        ("gait", "right", s2, tf.box_pose()),
+        ("repose", None, s3, tf.box_pose(dz=0.004)),
+        ("final", None, s4, tf.box_pose(dz=0.002)),
+    ]
+
+
+def _found(report):
+    return {(v.step, v.check, v.who) for v in report.violations}
+
+
+def test_valid_plan_is_ok_with_closed_form_metrics(models):
+    hand, obj = models
+    plan = _plan(hand, obj, _valid_specs(hand))
+    report = verify(plan, hand, obj)
+    assert report.ok, report.summary()
+    m = report.metrics
+    # nearest non-tip sphere: left_1#0 at (-0.04, 0, 0.05), r = 12 mm, box corner edge at (-0.03, ·, 0.09)
+    assert m["min_clearance"] == pytest.approx(np.hypot(0.01, 0.04) - 0.012, abs=1e-9)
+    assert m["min_clearance_at"] == {"step": 0, "who": "left_1#0"}
+    assert m["max_gait_step"] == pytest.approx(0.005, abs=1e-12)
+    assert m["max_slip"] == pytest.approx(0.0, abs=1e-9)
+    assert m["max_surface_error"] == pytest.approx(0.0, abs=1e-9)
+    # final contacts: left z = -0.005, right z = +0.005, goal ∓0.01 -> 5 mm each
+    assert m["final_avg_error"] == pytest.approx(0.005, abs=1e-9)
+    assert m["final_max_error"] == pytest.approx(0.005, abs=1e-9)
+    assert m["n_steps"] == 5
+    assert "verify: OK" in report.summary()
+
+
+def test_valid_plan_passes_after_json_round_trip_and_default_models(models, tmp_path):
+    hand, obj = models
+    plan = Plan.load(_plan(hand, obj, _valid_specs(hand)).save(tmp_path / "p.json"))
+    report = verify(plan)  # hand and object rebuilt from the plan's specs
+    assert report.ok, report.summary()
+    assert report.to_dict()["ok"] is True
+
+
+def test_joint_limit(models):
+    hand, obj = models
+    report = verify(_plan(hand, obj, _valid_specs(hand, roll0=1.2)), hand, obj)
+    assert _found(report) == {(0, "joint_limit", "left_roll")}
+    assert report.violations[0].amount == pytest.approx(0.2, abs=1e-12)
+    assert not report.ok
+
+
+def test_penetration(models):
+    hand, obj = models
+    specs = _valid_specs(hand)
+    kind, finger, q, _ = specs[3]
+    specs[3] = (kind, finger, q, tf.box_pose(dz=-0.05))  # box z in [0.04, 0.08]: link spheres at z = 0.05
+    report = verify(_plan(hand, obj, specs), hand, obj)
+    clear = {(v.step, v.who): v.amount for v in report.violations if v.check == "clearance"}
+    # sphere centre 10 mm from the ±x faces, radius 12 mm -> 2 mm penetration, both fingers
+    assert clear == pytest.approx({(3, "left_1#0"): -0.002, (3, "right_1#0"): -0.002}, abs=1e-9)
+    assert (3, "tip_surface", "left") in _found(report)
+
+
+def test_lifted_tip(models):
+    hand, obj = models
+    a = 0.05
+    report = verify(_plan(hand, obj, _valid_specs(hand, lift_right=a)), hand, obj)
+    assert _found(report) == {(2, "tip_surface", "right")}
+    # tip centre x = 0.04 + (0.09 + 0.005) sin a; box face at 0.03; radius 0.01
+    expected = 0.04 + 0.095 * np.sin(a) - 0.03 - 0.01
+    assert report.violations[0].amount == pytest.approx(expected, abs=1e-9)
+    assert "right tip is" in report.violations[0].message
+
+
+def test_too_long_gait(models):
+    hand, obj = models
+    report = verify(_plan(hand, obj, _valid_specs(hand, gait_left=-0.015)), hand, obj)
+    assert _found(report) == {(1, "gait_step", "left")}
+    assert report.violations[0].amount == pytest.approx(0.015, abs=1e-12)
+    assert report.violations[0].limit == 0.01
+    # an explicit eta overrides the plan's option
+    assert verify(_plan(hand, obj, _valid_specs(hand, gait_left=-0.015)), hand, obj, eta=0.02).ok
+
+
+def test_slip_during_repose(models):
+    hand, obj = models
+    report = verify(_plan(hand, obj, _valid_specs(hand, follow=False)), hand, obj)
+    slips = {(v.step, v.check, v.who): v.amount for v in report.violations}
+    assert slips == pytest.approx({(3, "slip", "left"): 0.004, (3, "slip", "right"): 0.004}, abs=1e-9)
+
+
+def test_gait_moving_other_finger_or_object(models):
+    hand, obj = models
+    specs = _valid_specs(hand)
+    kind, finger, q, T = specs[1]
+    q = q.copy()
+    q[hand.joint_names.index("right_roll")] = 0.3
+    specs[1] = (kind, finger, q, tf.box_pose(dy=0.001))
+    specs[2] = (specs[2][0], specs[2][1], specs[2][2], tf.box_pose(dy=0.001))
+    found = _found(verify(_plan(hand, obj, specs), hand, obj))
+    assert (1, "gait_other_joints", "right_roll") in found
+    assert (1, "gait_object_moved", "left") in found
+
+
+def test_false_claims_and_inconsistent_contacts(models):
+    hand, obj = models
+    plan = _plan(hand, obj, _valid_specs(hand, follow=False), status="converged")
+    d = plan.to_dict()
+    d["steps"][1]["contacts_object"][0][2] += 0.002  # stored left contact 2 mm off its tip
+    d["steps"][2]["contact_error"][1] += 0.001  # stored right error 1 mm off
+    found = _found(verify(Plan.from_dict(d), hand, obj))
+    assert (4, "converged_claim", "") in found
+    assert (1, "contact_consistency", "left") in found
+    assert (2, "contact_error", "right") in found
+
+
+def test_verify_does_not_use_smooth_distance_or_nlps(models, monkeypatch):
+    hand, obj = models
+
+    def boom(*args, **kwargs):
+        raise AssertionError("verify used the smooth distance")
+
+    monkeypatch.setattr(type(obj), "signed_distance", boom)
+    monkeypatch.setattr(type(obj), "signed_distance_function", boom)
+    assert verify(_plan(hand, obj, _valid_specs(hand)), hand, obj).ok
+    code = ("import sys, regrasp_casadi.verify; "
+            "bad = [m for m in ('finger_gait', 'in_grasp', 'planner', 'terms') "
+            "if 'regrasp_casadi.' + m in sys.modules]; print(bad); sys.exit(1 if bad else 0)")
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, check=False).returncode == 0
