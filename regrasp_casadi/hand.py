@@ -319,6 +319,7 @@ class Hand:
         """Radius of the fingertip contact sphere, m."""
         self._spec_fingers = None if fingers == {ln: ln for ln in leaves} else dict(fingers)
         self._fn_cache: dict[tuple, ca.Function] = {}
+        self._fast_cache: dict[str, tuple] = {}
 
     # ------------------------------------------------------------------ construction helpers
     @classmethod
@@ -384,10 +385,35 @@ class Hand:
         return T
 
     def _cached(self, key: tuple, build) -> ca.Function:
+        """Build a function once per key; outputs are made dense (fixed numeric layout, fast buffers)."""
         fn = self._fn_cache.get(key)
         if fn is None:
-            fn = self._fn_cache[key] = build()
+            fn = build()
+            if not all(fn.sparsity_out(i).is_dense() for i in range(fn.n_out())):
+                outs = [ca.densify(o) for o in fn.call([self._q])]
+                fn = ca.Function(fn.name(), [self._q], outs, fn.name_in(), fn.name_out(), {"cse": True})
+            self._fn_cache[key] = fn
         return fn
+
+    def _eval(self, fn: ca.Function, q: ArrayLike) -> NDArray[np.float64]:
+        """Evaluate a cached single-output function numerically through a preallocated CasADi buffer
+        (≈ 1-3 µs instead of ≈ 20 µs for a regular call). Not thread-safe; returns a copy."""
+        if fn.numel_out(0) == 0:
+            self._as_q(q)
+            return np.zeros(fn.size_out(0))
+        fast = self._fast_cache.get(fn.name())
+        if fast is None or fast[0] is not fn:
+            q_buf = np.zeros(self.n_joints)
+            rows, cols = fn.size_out(0)
+            out_buf = np.zeros((cols, rows))  # CasADi is column-major: out_buf.T is the (rows, cols) result
+            buf, evaluate = fn.buffer()
+            buf.set_arg(0, memoryview(q_buf))
+            buf.set_res(0, memoryview(out_buf))
+            fast = self._fast_cache[fn.name()] = (fn, buf, evaluate, q_buf, out_buf)
+        _, _, evaluate, q_buf, out_buf = fast
+        q_buf[:] = self._as_q(q)
+        evaluate()
+        return out_buf.T.copy()
 
     def fk_function(self) -> ca.Function:
         """``fk``: q (n,) -> one (4, 4) ``T_palm_<link>`` output per link, in ``link_names`` order."""
@@ -525,20 +551,20 @@ class Hand:
 
     def fk(self, q: ArrayLike) -> dict[str, NDArray[np.float64]]:
         """Numeric FK: link -> (4, 4) T_palm_link for q (n,)."""
-        M = self._fk_stacked_function()(self._as_q(q)).full()
+        M = self._eval(self._fk_stacked_function(), q)
         return {ln: M[:, 4 * i : 4 * i + 4] for i, ln in enumerate(self.link_names)}
 
     def tip_positions(self, q: ArrayLike) -> NDArray[np.float64]:
         """(m, 3) tip contact-sphere centres, palm frame, m, rows in ``fingers`` order."""
-        return self.tip_positions_function()(self._as_q(q)).full().T
+        return self._eval(self.tip_positions_function(), q).T
 
     def tip_jacobian(self, q: ArrayLike, finger: str) -> NDArray[np.float64]:
         """(3, n) Jacobian of the tip contact-sphere centre (palm frame) of ``finger`` w.r.t. q."""
-        return self.tip_jacobian_function(finger)(self._as_q(q)).full()
+        return self._eval(self.tip_jacobian_function(finger), q)
 
     def sphere_centers(self, q: ArrayLike, finger: str | None = None, include_tip: bool = False) -> NDArray:
         """(k, 3) sphere centres, palm frame, m (see ``sphere_centers_function``)."""
-        return self.sphere_centers_function(finger, include_tip)(self._as_q(q)).full().T
+        return self._eval(self.sphere_centers_function(finger, include_tip), q).T
 
     def q_mid(self) -> NDArray[np.float64]:
         """(n,) mid-range configuration (0 for unbounded joints)."""

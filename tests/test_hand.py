@@ -221,6 +221,13 @@ def test_symbolic_functions_are_cached_and_named(hand):
     f = hand.tip_position_function("thumb")
     assert f.name_in() == ["q"] and f.name_out() == ["p_palm_tip"]
     assert hand.fk_function().name_out()[0] == "T_palm_palm_link"
+    # the buffered numeric conveniences agree with plain CasADi calls of the public functions
+    q = np.random.default_rng(7).uniform(hand.q_lower, hand.q_upper)
+    T = hand.fk(q)
+    for link, T_dm in zip(hand.link_names, hand.fk_function()(q), strict=True):
+        np.testing.assert_array_equal(T[link], T_dm.full())
+    np.testing.assert_array_equal(hand.tip_jacobian(q, "ring"), hand.tip_jacobian_function("ring")(q).full())
+    np.testing.assert_array_equal(hand.sphere_centers(q), hand.sphere_centers_function()(q).full().T)
 
 
 @pytest.mark.reference_data
