@@ -11,6 +11,22 @@ Measures, in one run on the shipped model (models/allegro_right/allegro_right.ur
 Prints a markdown table and writes benchmarks/results/kinematics.json with machine info.
 
     python benchmarks/kinematics.py [--reps 2000]
+
+Representative output (Intel Xeon Processor, 2 shared cores, Python 3.11.7, CasADi 3.8.2, yourdfpy 0.0.60;
+machine loaded by other jobs, so absolute times vary ~2x between runs):
+
+| operation | time per call | yourdfpy / this |
+| --- | --- | --- |
+| FK, yourdfpy update_cfg + get_transform x21 | 1063.5 µs | 1x |
+| FK, CasADi fk_function()(q), 21 outputs | 75.2 µs | 14x |
+| FK, CasADi stacked (4, 84) single output | 29.8 µs | 36x |
+| FK, hand.fk(q) -> dict of numpy (4,4) (buffer) | 29.7 µs | 36x |
+| FK, CasADi stacked, buffer evaluation (raw) | 3.9 µs | 270x |
+| tip Jacobian, CasADi J_tip_index(q) | 35.7 µs | 30x |
+| tip Jacobian, CasADi buffer evaluation (raw) | 0.7 µs | 1556x |
+| tip Jacobian, hand.tip_jacobian(q) -> numpy (buffer) | 10.7 µs | 99x |
+
+Build in a fresh process: import casadi 162 ms, Hand parse 10.5 ms + all functions 38 ms = 48.5 ms.
 """
 
 from __future__ import annotations
