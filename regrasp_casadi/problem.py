@@ -1,0 +1,319 @@
+"""The regrasp problem file: `RegraspProblem.load(path.yaml)` gives the hand, object, initial and goal grasp.
+
+A problem file (YAML, schema in `problems/README.md`) names the hand, the object (a primitive with its
+dimensions, or a mesh path relative to the file), the initial grasp (joints + object pose) and the
+desired grasp (contacts + object pose). Every error is a `ProblemFileError` naming the file and the key
+path, e.g. ``problems/x.yaml: grasp_goal.contacts.thumb: expected 3 numbers, got 2``.
+
+    >>> problem = RegraspProblem.load("problems/box_rotate.yaml")
+    >>> plan = plan_regrasp(problem.grasp0, problem.grasp_goal)
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import pathlib
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import yaml
+
+from regrasp_casadi.errors import GraspError, MeshError, ModelError, ProblemFileError
+from regrasp_casadi.grasp import Grasp
+from regrasp_casadi.transforms import make_T, rpy_to_R
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.hand import Hand
+
+__all__ = ["RegraspProblem", "PROBLEM_SCHEMA_VERSION"]
+
+PROBLEM_SCHEMA_VERSION = 1
+"""Version of the problem-file schema; files must say `schema_version: 1`."""
+
+_TOP_KEYS = ("schema_version", "name", "description", "hand", "object", "grasp0", "grasp_goal")
+_PRIMITIVES = ("box", "cylinder", "sphere", "capsule", "bottle", "banana")
+_MESH_KEYS = ("mesh", "scale", "sha256", "threshold", "max_planes_per_piece")
+
+
+class _Ctx:
+    """Error context: the file name, prefixed to every message with the key path."""
+
+    def __init__(self, path: str):
+        self.path = path
+
+    def error(self, key: str, msg: str) -> ProblemFileError:
+        return ProblemFileError(f"{self.path}: {key}: {msg}" if key else f"{self.path}: {msg}")
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
+
+
+def _numbers(ctx: _Ctx, key: str, v: Any, n: int | None = None) -> np.ndarray:
+    """A flat list of finite numbers (length `n` if given)."""
+    if not isinstance(v, (list, tuple)):
+        what = f"{n} numbers" if n is not None else "numbers"
+        raise ctx.error(key, f"expected a list of {what}, got {type(v).__name__}")
+    bad = [i for i, x in enumerate(v) if not _is_number(x)]
+    if bad:
+        raise ctx.error(f"{key}[{bad[0]}]", f"expected a finite number, got {v[bad[0]]!r}")
+    if n is not None and len(v) != n:
+        raise ctx.error(key, f"expected {n} numbers, got {len(v)}")
+    return np.array(v, dtype=float)
+
+
+def _mapping(ctx: _Ctx, key: str, v: Any, allowed: tuple[str, ...], required: tuple[str, ...] = ()) -> dict:
+    if not isinstance(v, dict):
+        raise ctx.error(key, f"expected a mapping, got {type(v).__name__}")
+    unknown = [k for k in v if k not in allowed]
+    if unknown:
+        raise ctx.error(key, f"unknown key(s) {', '.join(map(str, unknown))} (allowed: {', '.join(allowed)})")
+    for k in required:
+        if k not in v:
+            raise ctx.error(key, f"missing key {k!r}")
+    return v
+
+
+def _pose(ctx: _Ctx, key: str, v: Any) -> np.ndarray:
+    """T_palm_object as a (4, 4) list of rows or {xyz: [3], rpy: [3]} (URDF fixed-axis rpy, rad)."""
+    if isinstance(v, dict):
+        _mapping(ctx, key, v, ("xyz", "rpy"), ("xyz", "rpy"))
+        xyz = _numbers(ctx, f"{key}.xyz", v["xyz"], 3)
+        rpy = _numbers(ctx, f"{key}.rpy", v["rpy"], 3)
+        return make_T(rpy_to_R(*rpy), xyz)
+    if not isinstance(v, list) or len(v) != 4:
+        raise ctx.error(key, "expected a 4x4 matrix (4 rows of 4 numbers) or {xyz: [3], rpy: [3]}")
+    return np.array([_numbers(ctx, f"{key}[{i}]", row, 4) for i, row in enumerate(v)])
+
+
+def _joints(ctx: _Ctx, key: str, v: Any, hand: Hand) -> np.ndarray:
+    """Joint angles as a list in `hand.joint_names` order or a complete {joint_name: value} mapping."""
+    if isinstance(v, dict):
+        names = list(hand.joint_names)
+        unknown = [k for k in v if k not in names]
+        if unknown:
+            raise ctx.error(key, f"unknown joint(s) {', '.join(map(str, unknown))} for {hand.name}")
+        missing = [k for k in names if k not in v]
+        if missing:
+            raise ctx.error(key, f"missing joint(s) {', '.join(missing)}")
+        for k in names:
+            if not _is_number(v[k]):
+                raise ctx.error(f"{key}.{k}", f"expected a finite number, got {v[k]!r}")
+        return np.array([float(v[k]) for k in names])
+    q = _numbers(ctx, key, v)
+    if len(q) != hand.n_joints:
+        raise ctx.error(key, f"expected {hand.n_joints} joint angles for {hand.name}, got {len(q)}")
+    return q
+
+
+def _load_hand(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> Hand:
+    from regrasp_casadi.hand import Hand
+
+    try:
+        if isinstance(v, str):
+            return Hand.from_spec({"model": v})
+        m = _mapping(ctx, "hand", v, ("urdf", "fingers"), ("urdf",))
+        if not isinstance(m["urdf"], str):
+            raise ctx.error("hand.urdf", f"expected a path, got {m['urdf']!r}")
+        path = pathlib.Path(m["urdf"]).expanduser()
+        path = path if path.is_absolute() else base_dir / path
+        if not path.is_file():
+            raise ctx.error("hand.urdf", f"file not found: {path}")
+        fingers = m.get("fingers")
+        if fingers is not None and not (
+            isinstance(fingers, dict) and all(isinstance(x, str) for x in [*fingers, *fingers.values()])
+        ):
+            raise ctx.error("hand.fingers", "expected a mapping {finger name: tip link name}")
+        return Hand.from_urdf(path, fingers=fingers)
+    except (ModelError, MeshError, KeyError, ValueError, TypeError) as e:
+        raise ctx.error("hand", str(e)) from None
+
+
+def _load_object(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> ObjectModel:
+    from regrasp_casadi.geometry import ObjectModel
+
+    if not isinstance(v, dict):
+        raise ctx.error("object", f"expected a mapping (primitive: ... or mesh: ...), got {type(v).__name__}")
+    if ("primitive" in v) == ("mesh" in v):
+        raise ctx.error("object", "give exactly one of 'primitive' or 'mesh'")
+    if "mesh" in v:
+        _mapping(ctx, "object", v, _MESH_KEYS)
+        if not isinstance(v["mesh"], str):
+            raise ctx.error("object.mesh", f"expected a path, got {v['mesh']!r}")
+        if "scale" in v and not (_is_number(v["scale"]) and v["scale"] > 0):
+            raise ctx.error("object.scale", f"expected a positive number, got {v['scale']!r}")
+    else:
+        kind = v["primitive"]
+        if kind not in _PRIMITIVES:
+            raise ctx.error("object.primitive",
+                            f"unknown primitive {kind!r} (one of {', '.join(_PRIMITIVES)})")
+        params = [p for p in inspect.signature(getattr(ObjectModel, kind)).parameters if p != "cls"]
+        _mapping(ctx, "object", v, ("primitive", *params))
+        for k, x in v.items():
+            if k == "extents":
+                ext = _numbers(ctx, "object.extents", x, 3)
+                if np.any(ext <= 0):
+                    raise ctx.error("object.extents", f"expected positive sizes, got {x}")
+            elif k != "primitive" and not (_is_number(x) and x > 0):
+                raise ctx.error(f"object.{k}", f"expected a positive number, got {x!r}")
+    try:
+        return ObjectModel.from_spec(dict(v), base_dir=base_dir)
+    except (MeshError, ValueError, TypeError) as e:
+        raise ctx.error("object", str(e)) from None
+
+
+def _grasp(ctx: _Ctx, key: str, build) -> Grasp:
+    try:
+        return build()
+    except GraspError as e:
+        raise ctx.error(key, str(e)) from None
+
+
+@dataclass(frozen=True, eq=False)
+class RegraspProblem:
+    """A regrasp problem read from (or written to) a YAML problem file."""
+
+    name: str
+    """Problem name (the file's `name`, default the file stem)."""
+    description: str
+    """Free text ("" when absent)."""
+    path: pathlib.Path | None
+    """The file it was loaded from (None if built in memory)."""
+    hand: Hand
+    """The hand."""
+    obj: ObjectModel
+    """The object."""
+    grasp0: Grasp
+    """Initial grasp (joints + object pose, validated: fingertips on the surface)."""
+    grasp_goal: Grasp
+    """Desired grasp (contacts on the surface + desired object pose; joints optional)."""
+    raw: dict
+    """The parsed YAML document as read."""
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> RegraspProblem:
+        """Read and validate a problem file.
+
+        Args:
+            path: the YAML file; relative mesh/URDF paths in it are resolved against its folder.
+
+        Raises:
+            ProblemFileError: naming the file and the key path, for a missing file, invalid YAML, a
+                missing, unknown or malformed key, or a grasp that fails validation (the `GraspError`
+                text, with the finger and distance, follows the key).
+        """
+        shown = str(path)
+        ctx = _Ctx(shown)
+        p = pathlib.Path(path)
+        try:
+            text = p.read_text(encoding="utf-8")
+        except OSError as e:
+            raise ctx.error("", f"cannot read problem file: {e.strerror or e}") from None
+        try:
+            raw = yaml.safe_load(text)
+        except yaml.YAMLError as e:
+            raise ctx.error("", f"invalid YAML: {e}") from None
+        if not isinstance(raw, dict):
+            raise ctx.error("", "expected a mapping at the top level")
+        _mapping(ctx, "", raw, _TOP_KEYS, ("schema_version", "hand", "object", "grasp0", "grasp_goal"))
+        version = raw["schema_version"]
+        if version != PROBLEM_SCHEMA_VERSION or isinstance(version, bool):
+            raise ctx.error("schema_version", f"expected {PROBLEM_SCHEMA_VERSION}, found {version!r}")
+        name = raw.get("name", p.stem)
+        description = raw.get("description", "")
+        for k, x in (("name", name), ("description", description)):
+            if not isinstance(x, str):
+                raise ctx.error(k, f"expected a string, got {type(x).__name__}")
+        base_dir = p.resolve().parent
+        hand = _load_hand(ctx, raw["hand"], base_dir)
+        obj = _load_object(ctx, raw["object"], base_dir)
+
+        g0 = _mapping(ctx, "grasp0", raw["grasp0"], ("joints", "T_palm_object"), ("joints", "T_palm_object"))
+        q0 = _joints(ctx, "grasp0.joints", g0["joints"], hand)
+        T0 = _pose(ctx, "grasp0.T_palm_object", g0["T_palm_object"])
+        grasp0 = _grasp(ctx, "grasp0", lambda: Grasp.from_joints(hand, obj, q0, T0))
+
+        gg = _mapping(ctx, "grasp_goal", raw["grasp_goal"], ("contacts", "T_palm_object", "joints"),
+                      ("contacts", "T_palm_object"))
+        c = _mapping(ctx, "grasp_goal.contacts", gg["contacts"], tuple(hand.fingers), tuple(hand.fingers))
+        contacts = np.array([_numbers(ctx, f"grasp_goal.contacts.{f}", c[f], 3) for f in hand.fingers])
+        Tg = _pose(ctx, "grasp_goal.T_palm_object", gg["T_palm_object"])
+        qg = _joints(ctx, "grasp_goal.joints", gg["joints"], hand) if "joints" in gg else None
+        grasp_goal = _grasp(ctx, "grasp_goal",
+                            lambda: Grasp.from_contacts(hand, obj, contacts, Tg, q=qg))
+        return cls(name, description, p, hand, obj, grasp0, grasp_goal, raw)
+
+    def to_yaml_dict(self, base_dir: str | os.PathLike | None = None) -> dict:
+        """The problem as a YAML-ready dict (the schema `load` reads; floats round-trip exactly).
+
+        Args:
+            base_dir: folder the file will be written to; mesh/URDF paths inside it are written
+                relative to it (default: absolute paths).
+        """
+        hand_spec = dict(self.hand.spec())
+        if "model" in hand_spec:
+            hand_out: Any = hand_spec["model"]
+        else:
+            hand_out = {"urdf": _rel(hand_spec["urdf"], base_dir)}
+            if hand_spec.get("fingers"):
+                hand_out["fingers"] = dict(hand_spec["fingers"])
+        obj_out = _plain(dict(self.obj.spec))
+        if "mesh" in obj_out:
+            obj_out["mesh"] = _rel(obj_out["mesh"], base_dir)
+        elif "primitive" not in obj_out:
+            raise ProblemFileError(
+                f"object {self.obj.name!r} has no file or primitive spec; save its mesh to a file first"
+            )
+        g0, gg = self.grasp0, self.grasp_goal
+        if g0.q is None:
+            raise ProblemFileError("grasp0 has no joint angles; a problem file needs them")
+        goal: dict[str, Any] = {
+            "contacts": {f: _plain(row)
+                         for f, row in zip(self.hand.fingers, gg.contacts_object, strict=True)},
+            "T_palm_object": _plain(gg.T_palm_object),
+        }
+        if gg.q is not None:
+            goal["joints"] = _plain(gg.q)
+        return {
+            "schema_version": PROBLEM_SCHEMA_VERSION,
+            "name": self.name,
+            "description": self.description,
+            "hand": hand_out,
+            "object": obj_out,
+            "grasp0": {"joints": _plain(g0.q), "T_palm_object": _plain(g0.T_palm_object)},
+            "grasp_goal": goal,
+        }
+
+    def save(self, path: str | os.PathLike) -> pathlib.Path:
+        """Write the problem as YAML (relative paths to meshes/URDFs next to it). Returns the path."""
+        path = pathlib.Path(path)
+        d = self.to_yaml_dict(base_dir=path.resolve().parent)
+        header = f"# regrasp problem {self.name!r} (schema in problems/README.md)\n"
+        path.write_text(header + yaml.safe_dump(d, sort_keys=False, default_flow_style=None, width=110),
+                        encoding="utf-8")
+        return path
+
+
+def _rel(p: str, base_dir: str | os.PathLike | None) -> str:
+    if base_dir is None:
+        return str(p)
+    try:
+        return os.path.relpath(pathlib.Path(p).resolve(), pathlib.Path(base_dir).resolve())
+    except ValueError:  # another drive (Windows)
+        return str(p)
+
+
+def _plain(x: Any) -> Any:
+    """numpy arrays/scalars to plain lists/floats (YAML writes Python floats with repr: lossless)."""
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    return x

@@ -1,0 +1,148 @@
+"""Problem files (YAML): a valid file loads into validated grasps; every error names the file and key."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+import twofinger as tf
+import yaml
+
+from regrasp_casadi.errors import ProblemFileError
+from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.transforms import make_T, rpy_to_R
+
+RPY = [0.0, 0.0, 0.3]
+
+
+def _valid_doc() -> dict:
+    """Two-finger hand (URDF next to the file) holding the box; goal: box turned 0.3 rad about z."""
+    return {
+        "schema_version": 1,
+        "description": "two-finger box test",
+        "hand": {"urdf": "hand/twofinger.urdf", "fingers": {"left": "left_tip", "right": "right_tip"}},
+        "object": {"primitive": "box", "extents": list(tf.BOX_EXTENTS)},
+        "grasp0": {
+            "joints": [0.0, -0.005, 0.0, 0.0, 0.0, 0.0],
+            "T_palm_object": tf.box_pose().tolist(),
+        },
+        "grasp_goal": {
+            "contacts": {"left": [-0.03, 0.01, 0.0], "right": [0.03, -0.01, 0.002]},
+            "T_palm_object": {"xyz": [0.0, 0.0, 0.11], "rpy": RPY},
+        },
+    }
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    d = tmp_path_factory.mktemp("problems")
+    (d / "hand").mkdir()
+    tf.make_hand(d / "hand")
+    return d
+
+
+def _write(folder, doc, name="p.yaml"):
+    path = folder / name
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def test_load_valid_file(folder):
+    problem = RegraspProblem.load(_write(folder, _valid_doc(), "box_turn.yaml"))
+    assert problem.name == "box_turn"  # default: the file stem
+    assert problem.description == "two-finger box test"
+    assert problem.hand.fingers == ("left", "right")
+    assert problem.obj.spec["extents"] == list(tf.BOX_EXTENTS)
+    # tips at (∓0.04, 0, 0.11 + slide), box centred at (0, 0, 0.11): contacts on the ±x faces
+    assert np.allclose(problem.grasp0.contacts_object, [[-0.03, 0, -0.005], [0.03, 0, 0]], atol=1e-12)
+    assert np.array_equal(problem.grasp_goal.contacts_object, [[-0.03, 0.01, 0.0], [0.03, -0.01, 0.002]])
+    assert np.allclose(problem.grasp_goal.T_palm_object, make_T(rpy_to_R(*RPY), [0, 0, 0.11]), atol=1e-15)
+    assert problem.grasp_goal.q is None
+    assert problem.grasp0.hand is problem.hand and problem.grasp_goal.obj is problem.obj
+
+
+def test_joints_as_mapping_equal_list(folder):
+    doc = _valid_doc()
+    names = ["left_base", "left_slide", "left_roll", "right_base", "right_slide", "right_roll"]
+    doc["grasp0"]["joints"] = dict(zip(reversed(names), reversed(doc["grasp0"]["joints"]), strict=True))
+    problem = RegraspProblem.load(_write(folder, doc))
+    assert np.array_equal(problem.grasp0.q, [0.0, -0.005, 0.0, 0.0, 0.0, 0.0])
+
+
+def test_save_load_round_trip(folder, tmp_path):
+    problem = RegraspProblem.load(_write(folder, _valid_doc(), "rt.yaml"))
+    out = tmp_path / "elsewhere" / "copy.yaml"
+    out.parent.mkdir()
+    problem.save(out)
+    assert not yaml.safe_load(out.read_text())["hand"]["urdf"].startswith("/")  # written relative
+    again = RegraspProblem.load(out)
+    assert again.name == "rt"
+    for a, b in [(problem.grasp0, again.grasp0), (problem.grasp_goal, again.grasp_goal)]:
+        assert np.array_equal(a.T_palm_object, b.T_palm_object)
+        assert np.array_equal(a.contacts_object, b.contacts_object)
+        assert (a.q is None and b.q is None) or np.array_equal(a.q, b.q)
+    assert again.obj.spec == problem.obj.spec
+    assert again.hand.spec() == problem.hand.spec()
+
+
+def _set(doc, keys, value):
+    target = doc
+    for k in keys[:-1]:
+        target = target[k]
+    if value is KeyError:
+        del target[keys[-1]]
+    else:
+        target[keys[-1]] = value
+
+
+@pytest.mark.parametrize(
+    "keys, value, message",
+    [
+        (("grasp_goal", "contacts", "right"), [0.03, 0.0],
+         "grasp_goal.contacts.right: expected 3 numbers, got 2"),
+        (("grasp_goal", "contacts", "left", 1), "x",
+         r"grasp_goal.contacts.left\[1\]: expected a finite number"),
+        (("grasp_goal", "contacts", "thumb"), [0, 0, 0], r"grasp_goal.contacts: unknown key\(s\) thumb"),
+        (("grasp_goal", "contacts", "left"), KeyError, "grasp_goal.contacts: missing key 'left'"),
+        (("grasp_gaol",), {}, r"unknown key\(s\) grasp_gaol"),
+        (("grasp0",), KeyError, "missing key 'grasp0'"),
+        (("schema_version",), 2, "schema_version: expected 1, found 2"),
+        (("object", "extent"), [0.1, 0.1, 0.1], r"object: unknown key\(s\) extent"),
+        (("object", "primitive"), "pyramid", "object.primitive: unknown primitive 'pyramid'"),
+        (("object", "extents"), [0.05, -0.09, 0.1], "object.extents: expected positive sizes"),
+        (("object", "mesh"), "x.obj", "object: give exactly one of 'primitive' or 'mesh'"),
+        (("hand",), "shadow_hand", "hand: unknown hand model 'shadow_hand'"),
+        (("hand", "urdf"), "nope.urdf", "hand.urdf: file not found"),
+        (("grasp0", "joints"), [0.0] * 5, "grasp0.joints: expected 6 joint angles for twofinger, got 5"),
+        (("grasp0", "joints"), {"left_base": 0.0}, r"grasp0.joints: missing joint\(s\) left_slide"),
+        (("grasp0", "T_palm_object"), {"xyz": [0, 0, 0.11], "rpy": [0, 0]},
+         "grasp0.T_palm_object.rpy: expected 3 numbers, got 2"),
+        (("grasp0", "T_palm_object"), {"xyz": [0.01, 0, 0.11], "rpy": [0, 0, 0]},
+         r"grasp0: left tip is 10.0 mm off the object surface \(tolerance 0.5 mm\)"),
+        (("grasp0", "T_palm_object", 0, 0), 2.0, "grasp0: T_palm_object: rotation is not orthonormal"),
+        (("grasp0", "joints", 2), 1.5, "grasp0: joint left_roll = 1.5 rad is outside its limits"),
+        (("grasp_goal", "contacts", "right"), [0.032, 0.0, 0.0],
+         "grasp_goal: right contact is 2.0 mm off the object surface"),
+        (("grasp_goal", "joints"), [0.0], "grasp_goal.joints: expected 6 joint angles"),
+        (("description",), 5, "description: expected a string"),
+    ],
+)
+def test_errors_name_file_and_key(folder, keys, value, message):
+    doc = copy.deepcopy(_valid_doc())
+    _set(doc, keys, value)
+    path = _write(folder, doc, "bad.yaml")
+    with pytest.raises(ProblemFileError, match=rf"^{path}: {message}"):
+        RegraspProblem.load(path)
+
+
+def test_unreadable_files(folder):
+    bad = folder / "broken.yaml"
+    bad.write_text("grasp0: [unclosed\n")
+    with pytest.raises(ProblemFileError, match=rf"^{bad}: invalid YAML"):
+        RegraspProblem.load(bad)
+    with pytest.raises(ProblemFileError, match=r"missing\.yaml: cannot read problem file"):
+        RegraspProblem.load(folder / "missing.yaml")
+    lst = _write(folder, [1, 2], "list.yaml")
+    with pytest.raises(ProblemFileError, match="expected a mapping at the top level"):
+        RegraspProblem.load(lst)
