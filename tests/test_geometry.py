@@ -342,3 +342,10 @@ def test_ycb_mesh_pieces_contain_surface(name):
     for pc in obj.pieces:
         assert len(pc.offsets) <= geometry.DEFAULT_MAX_PLANES
         assert np.all(pc.hard_distance(pc.vertices) <= 1e-12)
+
+
+def test_mx_and_sx_functions_agree(banana_small):
+    pts = np.random.default_rng(5).uniform(-0.1, 0.1, size=(3, 40))
+    sx = banana_small.signed_distance_function().map(40)(pts)
+    mx = banana_small.signed_distance_function(symbolic="MX").map(40)(pts)
+    np.testing.assert_allclose(np.asarray(mx), np.asarray(sx), atol=1e-14)
