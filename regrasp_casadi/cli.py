@@ -1,0 +1,380 @@
+"""The `regrasp` command line: plan, verify, view, generate grasps, benchmark and demo.
+
+    regrasp plan PROBLEM.yaml --method svd --out plan.json [--html replay.html] [--view] [--max-iters N]
+    regrasp verify plan.json [--all]
+    regrasp view plan.json [--html replay.html]
+    regrasp grasps MESH_OR_PROBLEM [--n N] [--seed S] [--out problems/x.yaml]
+    regrasp bench [ARGS ...]          (runs benchmarks/paper_objects.py)
+    regrasp demo [--out-dir DIR] [--method svd]
+
+Exit codes:
+    0  success (for `plan` / `demo`: the plan converged and `verify` accepts it; for `verify`: verified)
+    1  the plan was made (or read) but did not converge or did not pass `verify`
+    2  bad input: unreadable or invalid problem / plan / mesh file, bad arguments (a `RegraspError`)
+    3  unexpected internal error (run again with --verbose for the traceback)
+    130 interrupted (Ctrl-C)
+
+Errors are printed as one line, ``regrasp: error: <message>``, on stderr; `--verbose` adds the traceback
+and INFO logging. This is the only module of the package (with the examples) that prints.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import runpy
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.grasp import Plan
+
+__all__ = ["main", "EXIT_OK", "EXIT_FAILED", "EXIT_BAD_INPUT", "EXIT_INTERNAL"]
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_BAD_INPUT = 2
+EXIT_INTERNAL = 3
+EXIT_INTERRUPTED = 130
+
+_REPO = Path(__file__).resolve().parents[1]
+DEMO_PROBLEM = _REPO / "problems" / "box_rotate.yaml"
+BENCH_SCRIPT = _REPO / "benchmarks" / "paper_objects.py"
+
+_EPILOG = """exit codes:
+  0    success (plan/demo: converged and verified; verify: plan verified)
+  1    plan made or read, but not converged or not verified
+  2    bad input (unreadable or invalid problem, plan or mesh file; bad arguments)
+  3    unexpected internal error (use --verbose for the traceback)
+  130  interrupted
+"""
+
+
+class _UserError(Exception):
+    """An input problem detected by the CLI itself (exit code 2)."""
+
+
+def _err(msg: str) -> None:
+    print(f"regrasp: error: {msg}", file=sys.stderr)
+
+
+# ---------------------------------------------------------------------------------------------- helpers
+def _progress(max_iters: int, enabled: bool):
+    """A tqdm bar on stderr driven by the planner's progress callback; returns (callback, close)."""
+    if not enabled:
+        return None, lambda: None
+    from tqdm import tqdm
+
+    bar = tqdm(total=max_iters, desc="planning", unit="it", file=sys.stderr, leave=False,
+               dynamic_ncols=True)
+
+    def callback(iteration: int, max_it: int, avg_error_m: float) -> None:
+        bar.total = max_it
+        bar.n = min(iteration, max_it)
+        bar.set_postfix_str(f"avg error {avg_error_m * 1e3:.2f} mm", refresh=False)
+        bar.refresh()
+
+    return callback, bar.close
+
+
+def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool) -> Plan:
+    from regrasp_casadi.planner import plan_regrasp
+
+    kwargs = {"method": method}
+    if max_iters is not None:
+        kwargs["max_iters"] = max_iters
+    n_max = max_iters if max_iters is not None else 50
+    callback, close = _progress(n_max, show_progress)
+    try:
+        return plan_regrasp(problem.grasp0, problem.grasp_goal, progress=callback, **kwargs)
+    finally:
+        close()
+
+
+def _verify(plan: Plan, hand=None, obj=None):
+    from regrasp_casadi.verify import verify
+
+    return verify(plan, hand, obj)
+
+
+def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, elapsed: float) -> int:
+    """Verify, save, write the replay, print the summary; returns the exit code."""
+    report = _verify(plan, hand, obj)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        plan.save(out)
+    if html is not None:
+        from regrasp_casadi.viewer import write_html
+
+        write_html(plan, html, hand=hand, obj=obj)
+    kinds = {}
+    for st in plan.steps:
+        kinds[st.kind] = kinds.get(st.kind, 0) + 1
+    err = plan.final_error
+    print(f"plan: {plan.status} after {plan.iterations} iterations, {len(plan.steps)} steps "
+          f"({', '.join(f'{n} {k}' for k, n in kinds.items())}), method {plan.method}")
+    print(f"final average contact error: {err * 1e3:.2f} mm; planning time {elapsed:.2f} s")
+    print(f"verify: {'OK' if report.ok else f'FAILED ({len(report.violations)} violations)'}")
+    for v in report.violations[:3]:
+        print(f"  step {v.step}: {v.check} [{v.who}]: {v.message}")
+    written = [str(p) for p in (out, html) if p is not None]
+    if written:
+        print("wrote " + ", ".join(written))
+    if plan.status == "converged" and report.ok:
+        return EXIT_OK
+    return EXIT_FAILED
+
+
+def _load_plan(path: str) -> Plan:
+    from regrasp_casadi.errors import PlanFormatError
+    from regrasp_casadi.grasp import Plan
+
+    p = Path(path)
+    if not p.is_file():
+        raise _UserError(f"{path}: no such plan file")
+    try:
+        return Plan.load(p)
+    except PlanFormatError as e:
+        msg = str(e)
+        raise PlanFormatError(msg if path in msg else f"{path}: {msg}") from None
+    except (OSError, UnicodeDecodeError, ValueError) as e:
+        raise PlanFormatError(f"{path}: cannot read plan file: {e}") from None
+
+
+def _view_live(plan: Plan, hand=None, obj=None) -> int:
+    from regrasp_casadi.viewer import show
+
+    url = show(plan, hand=hand, obj=obj)
+    print(f"viewer: {url}  (Ctrl-C to stop)", flush=True)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        print("", file=sys.stderr)
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------------------------------------- commands
+def cmd_plan(args: argparse.Namespace) -> int:
+    from regrasp_casadi.problem import RegraspProblem
+
+    problem = RegraspProblem.load(args.problem)
+    t0 = time.perf_counter()
+    plan = _run_plan(problem, args.method, args.max_iters, not args.no_progress)
+    code = _finish_plan(plan, problem.hand, problem.obj, Path(args.out),
+                        Path(args.html) if args.html else None, time.perf_counter() - t0)
+    if args.view:
+        _view_live(plan, problem.hand, problem.obj)
+    return code
+
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    plan = _load_plan(args.plan)
+    report = _verify(plan)
+    print(report.summary(max_violations=len(report.violations) if args.all else 20))
+    return EXIT_OK if report.ok else EXIT_FAILED
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    plan = _load_plan(args.plan)
+    if args.html:
+        from regrasp_casadi.viewer import write_html
+
+        path = write_html(plan, args.html)
+        print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
+        return EXIT_OK
+    return _view_live(plan)
+
+
+def cmd_grasps(args: argparse.Namespace) -> int:
+    try:
+        import regrasp_casadi.grasp_gen as grasp_gen
+    except ImportError as e:
+        raise _UserError(f"grasp generation is not available (regrasp_casadi.grasp_gen: {e})") from None
+    src = Path(args.source)
+    if src.suffix.lower() in (".yaml", ".yml"):
+        from regrasp_casadi.problem import RegraspProblem
+
+        problem = RegraspProblem.load(src)
+        hand, obj = problem.hand, problem.obj
+    else:
+        from regrasp_casadi.geometry import ObjectModel
+        from regrasp_casadi.hand import Hand
+
+        if not src.is_file():
+            raise _UserError(f"{src}: no such mesh or problem file")
+        obj = ObjectModel.from_mesh(src, scale=args.scale)
+        hand = Hand.allegro_right()
+    if args.out:
+        from regrasp_casadi.problem import RegraspProblem
+
+        (g0, gg), = grasp_gen.generate_regrasp_pairs(hand, obj, 1, seed=args.seed)
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        problem = RegraspProblem(out.stem, f"generated by `regrasp grasps` (seed {args.seed})", None,
+                                 hand, obj, g0, gg, {})
+        problem.save(out)
+        print(f"wrote regrasp problem {out} (object {obj.name}, seed {args.seed})")
+        return EXIT_OK
+    grasps = grasp_gen.generate_grasps(hand, obj, n=args.n, seed=args.seed)
+    for k, g in enumerate(grasps):
+        t = g.T_palm_object[:3, 3] * 1e3
+        q = grasp_gen.grasp_quality(g)
+        print(f"grasp {k}: object at ({t[0]:.1f}, {t[1]:.1f}, {t[2]:.1f}) mm in the palm frame, "
+              f"force-closure quality {q:.4f}")
+    return EXIT_OK
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    if not BENCH_SCRIPT.is_file():
+        raise _UserError(f"{BENCH_SCRIPT}: benchmark script not found (needs a source checkout)")
+    argv0 = sys.argv
+    sys.argv = [str(BENCH_SCRIPT), *args.bench_args]
+    try:
+        runpy.run_path(str(BENCH_SCRIPT), run_name="__main__")
+    except SystemExit as e:
+        return e.code if isinstance(e.code, int) else (0 if e.code is None else EXIT_FAILED)
+    finally:
+        sys.argv = argv0
+    return EXIT_OK
+
+
+def _demo_problem():
+    """The built-in problem (problems/box_rotate.yaml), or one generated in memory if it is missing."""
+    from regrasp_casadi.problem import RegraspProblem
+
+    if DEMO_PROBLEM.is_file():
+        return RegraspProblem.load(DEMO_PROBLEM)
+    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.grasp_gen import generate_regrasp_pairs
+    from regrasp_casadi.hand import Hand
+
+    logging.getLogger(__name__).info("%s missing: generating a box regrasp problem", DEMO_PROBLEM)
+    hand, obj = Hand.allegro_right(), ObjectModel.box((0.06, 0.06, 0.12))
+    (g0, gg), = generate_regrasp_pairs(hand, obj, 1, seed=0)
+    return RegraspProblem("box_generated", "generated in memory by `regrasp demo`", None, hand, obj,
+                          g0, gg, {})
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    problem = _demo_problem()
+    out_dir = Path(args.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    print(f"demo: regrasp of {problem.obj.name!r} ({problem.name}) with the {args.method} method")
+    t0 = time.perf_counter()
+    plan = _run_plan(problem, args.method, None, not args.no_progress)
+    code = _finish_plan(plan, problem.hand, problem.obj, out_dir / "plan.json", out_dir / "replay.html",
+                        time.perf_counter() - t0)
+    print(f"open {out_dir / 'replay.html'} in a browser to watch the regrasp")
+    return code
+
+
+# ---------------------------------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    """The `regrasp` argument parser (one subparser per command)."""
+    from regrasp_casadi import __version__
+
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--verbose", "-v", action="store_true",
+                        help="INFO logging and full tracebacks on errors")
+    p = argparse.ArgumentParser(
+        prog="regrasp", parents=[common], epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Geometric in-hand regrasp planning (Sundaralingam & Hermans, ICRA 2018) for the "
+                    "Allegro hand: plan, verify and replay regrasps.")
+    p.add_argument("--version", action="version", version=f"regrasp {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    def add(name: str, help_: str) -> argparse.ArgumentParser:
+        return sub.add_parser(name, parents=[common], help=help_, description=help_, epilog=_EPILOG,
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+
+    sp = add("plan", "plan a regrasp for a problem file, verify it, save it (and its HTML replay)")
+    sp.add_argument("problem", metavar="PROBLEM.yaml", help="regrasp problem file (YAML)")
+    sp.add_argument("--method", choices=("svd", "sd"), default="svd",
+                    help="in-grasp objective E_des: svd (Kabsch pose) or sd (workspace distance)")
+    sp.add_argument("--out", default="plan.json", metavar="PLAN.json", help="plan file to write")
+    sp.add_argument("--html", metavar="REPLAY.html", help="also write a self-contained HTML replay")
+    sp.add_argument("--view", action="store_true", help="open the live viewer after planning")
+    sp.add_argument("--max-iters", type=int, metavar="N", help="planner iteration limit (default 50)")
+    sp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    sp.set_defaults(func=cmd_plan)
+
+    sp = add("verify", "check a plan file with exact geometry and print the report")
+    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
+    sp.add_argument("--all", action="store_true", help="list every violation (default: the first 20)")
+    sp.set_defaults(func=cmd_verify)
+
+    sp = add("view", "replay a plan: live viewer on localhost, or a self-contained HTML file")
+    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
+    sp.add_argument("--html", metavar="REPLAY.html", help="write the HTML replay and exit")
+    sp.set_defaults(func=cmd_view)
+
+    sp = add("grasps", "generate precision grasps on a mesh (or a problem's object)")
+    sp.add_argument("source", metavar="MESH_OR_PROBLEM", help="mesh file (.obj, .stl, ...) or problem .yaml")
+    sp.add_argument("--n", type=int, default=1, metavar="N", help="number of grasps to generate")
+    sp.add_argument("--seed", type=int, default=0, metavar="S", help="random seed")
+    sp.add_argument("--scale", type=float, default=1.0, help="mesh scale to metres (default 1.0)")
+    sp.add_argument("--out", metavar="PROBLEM.yaml",
+                    help="write a regrasp problem (a generated initial/desired grasp pair) to this file")
+    sp.set_defaults(func=cmd_grasps)
+
+    sp = add("bench", "run the paper-objects benchmark (benchmarks/paper_objects.py); every argument "
+                      "after `bench` goes to the script (`regrasp bench -- --help` for its help)")
+    sp.add_argument("bench_args", nargs="*", metavar="ARGS", help="arguments passed to the benchmark script")
+    sp.set_defaults(func=cmd_bench)
+
+    sp = add("demo", "plan, verify and replay a regrasp on the built-in box problem")
+    sp.add_argument("--out-dir", default=".", metavar="DIR",
+                    help="folder for plan.json and replay.html (default: current directory)")
+    sp.add_argument("--method", choices=("svd", "sd"), default="svd", help="in-grasp objective")
+    sp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    sp.set_defaults(func=cmd_demo)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run `regrasp` with `argv` (default `sys.argv[1:]`); returns the exit code (see the module doc)."""
+    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    bench_args: list[str] | None = None
+    first = next((i for i, a in enumerate(argv) if not a.startswith("-")), None)
+    if first is not None and argv[first] == "bench":   # pass everything after `bench` to the script
+        rest = argv[first + 1:]
+        if rest[:1] == ["--"]:
+            bench_args, argv = rest[1:], argv[:first + 1]
+        elif not {"-h", "--help"} & set(rest):
+            bench_args, argv = rest, argv[:first + 1]
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:   # --help, --version, usage errors (argparse already printed)
+        return e.code if isinstance(e.code, int) else EXIT_BAD_INPUT
+    if bench_args is not None:
+        args.bench_args = bench_args
+    verbose = bool(getattr(args, "verbose", False))
+    logging.basicConfig(level=logging.INFO if verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    from regrasp_casadi.errors import RegraspError
+
+    try:
+        return int(args.func(args))
+    except KeyboardInterrupt:
+        _err("interrupted")
+        return EXIT_INTERRUPTED
+    except (RegraspError, _UserError) as e:
+        if verbose:
+            traceback.print_exc()
+        _err(" ".join(str(e).split()) or type(e).__name__)
+        return EXIT_BAD_INPUT
+    except Exception as e:  # noqa: BLE001 - the CLI's last line of defence, reported as exit code 3
+        if verbose:
+            traceback.print_exc()
+        _err(f"internal error: {type(e).__name__}: {' '.join(str(e).split())} (use --verbose for details)")
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

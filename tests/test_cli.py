@@ -1,0 +1,177 @@
+"""The `regrasp` command line: help texts, exit codes, one-line errors, and the plan -> HTML round trip."""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_viewer import make_plan
+
+from regrasp_casadi import cli
+
+HELP_NAMES = {
+    None: ["plan", "verify", "view", "grasps", "bench", "demo", "exit codes"],
+    "plan": ["PROBLEM.yaml", "--method", "--out", "--html", "--view", "--max-iters", "--verbose"],
+    "verify": ["PLAN.json", "--all", "--verbose"],
+    "view": ["PLAN.json", "--html"],
+    "grasps": ["MESH_OR_PROBLEM", "--n", "--seed", "--out"],
+    "bench": ["ARGS"],
+    "demo": ["--out-dir", "--method"],
+}
+
+
+@pytest.mark.parametrize("command", list(HELP_NAMES))
+def test_help_names_the_arguments(command, capsys):
+    argv = ["--help"] if command is None else [command, "--help"]
+    assert cli.main(argv) == 0
+    out = capsys.readouterr().out
+    for name in HELP_NAMES[command]:
+        assert name in out, f"{name!r} missing from `regrasp {command or ''} --help`"
+    assert "2    bad input" in out   # exit codes documented in every help text
+
+
+def _one_error_line(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, f"expected one line on stderr, got:\n{err}"
+    assert lines[0].startswith("regrasp: error: ")
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def test_missing_problem_file_is_bad_input(tmp_path, capsys):
+    path = tmp_path / "nope" / "missing_problem.yaml"
+    assert cli.main(["plan", str(path), "--out", str(tmp_path / "p.json")]) == cli.EXIT_BAD_INPUT
+    line = _one_error_line(capsys.readouterr().err)
+    assert "missing_problem.yaml" in line
+    assert not (tmp_path / "p.json").exists()
+
+
+def test_malformed_problem_file_is_bad_input(tmp_path, capsys):
+    path = tmp_path / "broken.yaml"
+    path.write_text("schema_version: 1\nhand: [unclosed\n", encoding="utf-8")
+    assert cli.main(["plan", str(path), "--no-progress"]) == cli.EXIT_BAD_INPUT
+    assert "broken.yaml" in _one_error_line(capsys.readouterr().err)
+
+
+def test_verbose_shows_the_traceback(tmp_path, capsys):
+    assert cli.main(["plan", str(tmp_path / "missing.yaml"), "--verbose"]) == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert "Traceback" in err and err.rstrip().splitlines()[-1].startswith("regrasp: error: ")
+
+
+def test_bad_arguments_exit_2(capsys):
+    assert cli.main(["plan"]) == 2
+    assert cli.main(["plan", "x.yaml", "--method", "newton"]) == 2
+    assert cli.main([]) == 2
+
+
+def planted_plan(hand):
+    """A plan whose last step puts joint 1 (index) 0.3 rad above its upper limit."""
+    plan = make_plan(hand)
+    last = plan.steps[-1]
+    q = last.q.copy()
+    q[1] = hand.q_upper[1] + 0.3
+    steps = (*plan.steps[:-1], dataclasses.replace(last, q=q))
+    return dataclasses.replace(plan, steps=steps)
+
+
+def test_verify_reports_a_planted_violation(hand, tmp_path, capsys):
+    step = len(make_plan(hand).steps) - 1
+    planted = rf"step {step}: joint_limit \[{re.escape(hand.joint_names[1])}\]"
+    clean = make_plan(hand).save(tmp_path / "plan.json")
+    cli.main(["verify", str(clean), "--all"])
+    assert not re.search(planted, capsys.readouterr().out)
+    path = planted_plan(hand).save(tmp_path / "bad_plan.json")
+    assert cli.main(["verify", str(path), "--all"]) == cli.EXIT_FAILED
+    out = capsys.readouterr().out
+    assert "FAILED" in out
+    assert re.search(planted, out), out
+
+
+def test_verify_unreadable_plan_is_bad_input(tmp_path, capsys):
+    path = tmp_path / "garbage.json"
+    path.write_text("{not json", encoding="utf-8")
+    assert cli.main(["verify", str(path)]) == cli.EXIT_BAD_INPUT
+    assert "garbage.json" in _one_error_line(capsys.readouterr().err)
+    assert cli.main(["verify", str(tmp_path / "absent.json")]) == cli.EXIT_BAD_INPUT
+    assert "absent.json" in _one_error_line(capsys.readouterr().err)
+
+
+def test_internal_error_exit_3(hand, tmp_path, capsys, monkeypatch):
+    import regrasp_casadi.verify as verify_mod
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("simulated bug")
+
+    monkeypatch.setattr(verify_mod, "verify", boom)
+    path = make_plan(hand).save(tmp_path / "plan.json")
+    assert cli.main(["verify", str(path)]) == cli.EXIT_INTERNAL
+    line = _one_error_line(capsys.readouterr().err)
+    assert "internal error" in line and "simulated bug" in line
+
+
+def _scene_commands(html: str) -> list[dict]:
+    import umsgpack
+
+    blobs = re.findall(r'fetch\("data:application/octet-binary;base64,([A-Za-z0-9+/=]+)"\)', html)
+    return [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
+
+
+def test_view_html_round_trip(hand, tmp_path, capsys):
+    plan = make_plan(hand)
+    path = plan.save(tmp_path / "plan.json")
+    out = tmp_path / "replay.html"
+    assert cli.main(["view", str(path), "--html", str(out)]) == 0
+    assert str(out) in capsys.readouterr().out
+    html = out.read_text(encoding="utf-8")
+    cmds = _scene_commands(html)
+    objects = {c["path"] for c in cmds if c["type"] == "set_object"}
+    assert "/meshcat/regrasp/object/mesh" in objects
+    for link in hand.link_names:
+        if link != "palm_link" and not link.endswith("_tip"):
+            assert any(p.startswith(f"/meshcat/regrasp/hand/{link}/") for p in objects), link
+    assert sum(p.startswith("/meshcat/regrasp/object/goal_contacts/") for p in objects) == len(plan.fingers)
+    (anim,) = [c for c in cmds if c["type"] == "set_animation"]
+    # the reloaded plan's object pose at the last step is the animation's last object key
+    clip = next(a["clip"] for a in anim["animations"] if a["path"] == "/meshcat/regrasp/object")
+    pos = next(t for t in clip["tracks"] if t["name"] == ".position")
+    np.testing.assert_allclose(pos["keys"][-1]["value"], plan.steps[-1].T_palm_object[:3, 3], atol=1e-6)
+
+
+def test_grasps_missing_mesh_is_bad_input(tmp_path, capsys):
+    assert cli.main(["grasps", str(tmp_path / "nothing.obj")]) == cli.EXIT_BAD_INPUT
+    assert "nothing.obj" in _one_error_line(capsys.readouterr().err)
+
+
+def test_bench_without_script_is_bad_input(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(cli, "BENCH_SCRIPT", tmp_path / "paper_objects.py")
+    assert cli.main(["bench"]) == cli.EXIT_BAD_INPUT
+    assert "paper_objects.py" in _one_error_line(capsys.readouterr().err)
+
+
+def test_bench_passes_its_arguments(tmp_path, capsys, monkeypatch):
+    script = tmp_path / "paper_objects.py"
+    script.write_text("import sys\nprint('ARGS', sys.argv[1:])\nsys.exit(1 if '--fail' in sys.argv else 0)\n",
+                      encoding="utf-8")
+    monkeypatch.setattr(cli, "BENCH_SCRIPT", script)
+    assert cli.main(["bench", "--objects", "banana", "--n", "2"]) == 0
+    assert "ARGS ['--objects', 'banana', '--n', '2']" in capsys.readouterr().out
+    assert cli.main(["bench", "--fail"]) == 1
+    assert cli.main(["bench", "--", "--help"]) == 0
+    assert "ARGS ['--help']" in capsys.readouterr().out
+
+
+def test_installed_console_script_help():
+    exe = shutil.which("regrasp") or str(Path(sys.executable).parent / "regrasp")
+    if not Path(exe).exists():
+        pytest.skip("the `regrasp` console script is not installed (pip install -e .)")
+    proc = subprocess.run([exe, "--help"], capture_output=True, text=True, timeout=60, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "exit codes" in proc.stdout and "demo" in proc.stdout
