@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,6 +39,11 @@ ALLEGRO_FINGERS = {
     "thumb": "link_15.0_tip",
 }
 _SUPPORTED = ("revolute", "continuous", "prismatic", "fixed")
+
+
+def _function_name(prefix: str, name: str) -> str:
+    """A valid CasADi Function name from a URDF name (letters, digits, single underscores)."""
+    return prefix + "_" + re.sub(r"[^A-Za-z0-9]+", "_", name).strip("_")
 
 
 @dataclass(frozen=True)
@@ -458,7 +464,7 @@ class Hand:
         return self._cached(
             ("tip", finger),
             lambda: ca.Function(
-                f"tip_{finger}",
+                _function_name("tip", finger),
                 [self._q],
                 [self._center_expr(self._tip_sphere[finger])],
                 ["q"],
@@ -488,7 +494,7 @@ class Hand:
         def build():
             p = self._center_expr(self._tip_sphere[finger])
             return ca.Function(
-                f"J_tip_{finger}", [self._q], [ca.jacobian(p, self._q)], ["q"], ["J_palm_tip"], {"cse": True}
+                _function_name("J_tip", finger), [self._q], [ca.jacobian(p, self._q)], ["q"], ["J_palm_tip"], {"cse": True}
             )
 
         return self._cached(("jac", finger), build)
@@ -500,7 +506,7 @@ class Hand:
         return self._cached(
             ("rot", link),
             lambda: ca.Function(
-                f"R_{link}",
+                _function_name("R", link),
                 [self._q],
                 [self._T_palm_link[link][:3, :3]],
                 ["q"],
