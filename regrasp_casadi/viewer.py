@@ -49,6 +49,7 @@ logger = logging.getLogger(__name__)
 
 HAND_COLOR = 0x3366CC       # steel blue
 OBJECT_COLOR = 0xF2A93B     # amber
+OBJECT_OPACITY = 0.7        # see the contacts behind the object
 GOAL_COLOR = 0x22BB33       # green: desired contacts
 CONTACT_COLOR = 0xE02020    # red: current contacts
 GOAL_RADIUS = 0.004         # m
@@ -58,6 +59,7 @@ _ROOT = "regrasp"          # under /meshcat
 _LABELS = "/Cameras/default/rotated/<object>/labels"
 _CAMERA_FOV_DEG = 75.0      # Meshcat's default perspective camera
 
+VIEW_TOWARD_PALM_SIDE = 0.6  # how much the camera turns from the grasp's side towards the palm side
 LIVE_VIEWERS: list = []     # live visualizers started by `show` (kept alive here)
 
 
@@ -248,16 +250,27 @@ def _scene_bounds(frames: list[Keyframe], obj: ObjectModel) -> tuple[NDArray, fl
 
 
 def camera_offset(frames: list[Keyframe], center: NDArray, radius: float) -> NDArray:
-    """Camera position relative to the scene centre (palm frame, m): on the side where the object lies
-    (the palm side), raised and turned a little, at a distance that fits a sphere of `radius`."""
-    hand_c = np.mean([T[:3, 3] for T in frames[0].T_palm_link.values()], axis=0)
-    u = frames[0].T_palm_object[:3, 3] - hand_c
+    """Camera position relative to the scene centre (palm frame, m).
+
+    The camera looks across the grasp: perpendicular to the opposition axis (last finger, the thumb on
+    the Allegro, against the mean of the others) and to the palm -> object direction `u`, turned towards
+    `u` so that the palm side is seen, slightly raised; at a distance that fits a sphere of `radius`.
+    """
+    f0 = frames[0]
+    hand_c = np.mean([T[:3, 3] for T in f0.T_palm_link.values()], axis=0)
+    u = f0.T_palm_object[:3, 3] - hand_c
     u = u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-6 else np.array([1.0, 0.0, 0.0])
-    side = np.cross(np.array([0.0, 0.0, 1.0]), u)
-    side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.array([0.0, 1.0, 0.0])
-    v = u + 0.8 * side + 0.45 * np.array([0.0, 0.0, 1.0])
+    p = f0.p_palm_contacts
+    opp = p[-1] - p[:-1].mean(axis=0) if len(p) > 1 else np.array([0.0, 1.0, 0.0])
+    side = np.cross(u, opp)
+    if np.linalg.norm(side) < 1e-6:
+        side = np.cross(u, np.array([0.0, 0.0, 1.0]))
+    if np.linalg.norm(side) < 1e-6:
+        side = np.array([0.0, 1.0, 0.0])
+    side /= np.linalg.norm(side)
+    v = side + VIEW_TOWARD_PALM_SIDE * u + 0.3 * np.array([0.0, 0.0, 1.0])
     v /= np.linalg.norm(v)
-    dist = 1.25 * radius / np.tan(np.radians(_CAMERA_FOV_DEG) / 2.0)
+    dist = 1.35 * radius / np.tan(np.radians(_CAMERA_FOV_DEG) / 2.0)
     return v * dist
 
 
@@ -428,7 +441,7 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
     mesh = obj.mesh
     root["object"]["mesh"].set_object(
         g.TriangularMeshGeometry(np.asarray(mesh.vertices), np.asarray(mesh.faces)),
-        g.MeshLambertMaterial(color=OBJECT_COLOR))
+        g.MeshLambertMaterial(color=OBJECT_COLOR, opacity=OBJECT_OPACITY))
     goal_geom, goal_mat = g.Sphere(GOAL_RADIUS), g.MeshLambertMaterial(color=GOAL_COLOR)
     for r, p in enumerate(np.asarray(plan.goal_contacts_object, dtype=float)):
         node = root["object"]["goal_contacts"][str(plan.fingers[r])]
