@@ -1,0 +1,229 @@
+"""OPT1 — finger gait: move one finger's contact towards its goal while the others hold the object.
+
+    >>> nlp = FingerGaitNLP(hand, obj, "index")           # built once per (hand, object, finger)
+    >>> result = nlp.solve(q, T_palm_object, p_object_tip_goal)
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from regrasp_casadi import solver as _solver
+from regrasp_casadi import terms
+
+if TYPE_CHECKING:
+    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.hand import Hand
+
+__all__ = ["FingerGaitOptions", "FingerGaitResult", "FingerGaitNLP"]
+
+_log = logging.getLogger(__name__)
+
+_CM2 = 1e4  # objective scale: m² → cm²
+_MM = 1e3  # distance-constraint scale: m → mm
+
+
+@dataclass(frozen=True)
+class FingerGaitOptions:
+    """Knobs of OPT1 (paper §III-A); SI units."""
+
+    eta: float = 0.01
+    """η, bound on the fingertip displacement of one gait, m (paper: 1 cm)."""
+    beta: float = 0.001
+    """β, clearance every other sphere of the moving finger keeps from the object, m (paper: 0.1 cm)."""
+    surface_tol: float = 5e-5
+    """Exact-contact tolerance: re-solve with a corrected offset until |SD_exact(tip) − r| ≤ this, m."""
+    max_corrections: int = 4
+    """Maximum number of re-solves of the exact-contact correction."""
+    tau: float | None = None
+    """Temperature of the smooth signed distance (None: the object's default), m."""
+    print_level: int = 0
+    """IPOPT print level (0 = quiet)."""
+
+
+@dataclass(frozen=True)
+class FingerGaitResult:
+    """The outcome of one finger gait."""
+
+    q: NDArray[np.float64]
+    """Joint angles after the gait, (n,) rad; only the finger's joints differ from the input."""
+    p_object_tip: NDArray[np.float64]
+    """Tip-sphere centre after the gait, (3,) object frame, m."""
+    status: str
+    """IPOPT return_status of the last solve."""
+    success: bool
+    """True when the result satisfies OPT1's constraints with the exact geometry."""
+    iterations: int
+    """IPOPT iterations over all solves of this gait."""
+    solves: int
+    """Number of IPOPT solves (1 + exact-contact corrections)."""
+    solve_time: float
+    """Time spent inside IPOPT, s."""
+    surface_error: float
+    """|SD_exact(tip centre) − tip radius| at the result, m."""
+    min_clearance: float
+    """Smallest exact distance of the finger's other spheres to the object, m."""
+
+
+class FingerGaitNLP:
+    r"""OPT1, the finger-gait NLP of Sundaralingam & Hermans (ICRA 2018, §III-A), for one finger r:
+
+    .. math::
+        \min_{\Theta^r} \; \| c_{r,g} - T_{O}^{-1} FK_r(\Theta^r) \|^2
+        \quad \text{s.t.} \quad
+        \Theta^r_{min} \preceq \Theta^r \preceq \Theta^r_{max}, \;
+        SD(T_O^{-1} FK_r(\Theta^r), M) + \delta_r = \rho, \;
+        SD(T_O^{-1} FK_l(\Theta^r), M) + \delta_l - \rho_l \ge \beta \;\; \forall l \in L_r, \;
+        \| FK_r(\Theta^r_0) - FK_r(\Theta^r) \|^2 \le \eta^2
+
+    `FK_r` is the centre of the fingertip contact sphere (radius ρ), so the paper's point-contact cost
+    ``||f_{r,g} − FK_r||²`` becomes the distance to the goal tip centre ``c_{r,g} = f_{r,g} + ρ n(f_{r,g})``
+    (n the outward surface normal); `L_r` are the finger's other collision spheres (radius ρ_l); SD is the
+    smooth signed distance of `ObjectModel`. The offsets δ (parameters) make contacts exact: after a
+    solve, δ = SD_exact − SD_smooth at the solution and the NLP is solved again (warm started) until the
+    tip sits on the real mesh within `surface_tol`.
+
+    Decision variables: the finger's joints (n_r,). Parameters: the full joint vector (n,), the object
+    pose (R column-major (9,), t (3,)), the goal tip centre (3,) object frame, δ_tip (1,), δ_l (k,).
+    The objective is in cm² and the distance constraints in mm, for IPOPT's tolerances.
+    """
+
+    _n_builds = 0
+
+    def __init__(self, hand: Hand, obj: ObjectModel, finger: str, options: FingerGaitOptions | None = None):
+        self.hand, self.obj, self.finger = hand, obj, finger
+        self.options = options or FingerGaitOptions()
+        o = self.options
+        if finger not in hand.fingers:
+            raise ValueError(f"unknown finger {finger!r}; the hand has {hand.fingers}")
+        FingerGaitNLP._n_builds += 1
+        idx = np.asarray(hand.finger_joints[finger], dtype=int)
+        self._idx = idx
+        n = hand.n_joints
+        radii = np.asarray(hand.sphere_radii(finger), dtype=float)
+        k = radii.size
+        self._radii = radii
+        sd = obj.signed_distance_function(o.tau)
+
+        # decision variables
+        q_r = ca.SX.sym("q_r", idx.size)
+        # parameters
+        q_all = ca.SX.sym("q_all", n)
+        R_vec = ca.SX.sym("R_palm_object", 9)
+        t = ca.SX.sym("t_palm_object", 3)
+        c_goal = ca.SX.sym("p_object_tip_goal", 3)
+        delta_tip = ca.SX.sym("delta_tip", 1)
+        delta_l = ca.SX.sym("delta_l", k)
+        p = ca.vertcat(q_all, R_vec, t, c_goal, delta_tip, delta_l)
+        R = ca.reshape(R_vec, 3, 3)
+
+        q_full = terms.substitute_joints(q_all, idx, q_r)
+        tip_fun = hand.tip_position_function(finger)
+        c_palm = tip_fun(q_full)
+        c_palm0 = tip_fun(q_all)
+        c_obj = terms.to_object_frame(R, t, c_palm)
+        if k:
+            s_obj = terms.to_object_frame(R, t, hand.sphere_centers_function(finger)(q_full))
+            sd_l = terms.smooth_signed_distances(sd, s_obj)
+        else:
+            s_obj = ca.SX(3, 0)
+            sd_l = ca.SX(0, 1)
+        sd_tip = sd(c_obj)
+
+        # objective
+        f = _CM2 * ca.sumsqr(c_obj - c_goal)
+        # constraints
+        g = ca.vertcat(
+            _MM * (sd_tip + delta_tip - hand.tip_radius),
+            _MM * (sd_l + delta_l - ca.DM(radii)),
+            _CM2 * ca.sumsqr(c_palm - c_palm0),
+        )
+        # bounds
+        self._lbx = np.asarray(hand.q_lower, float)[idx]
+        self._ubx = np.asarray(hand.q_upper, float)[idx]
+        self._lbg = np.concatenate([[0.0], np.full(k, _MM * o.beta), [-np.inf]])
+        self._ubg = np.concatenate([[0.0], np.full(k, np.inf), [_CM2 * o.eta**2]])
+        # solver
+        nlp = {"x": q_r, "p": p, "f": f, "g": g}
+        self._solver = ca.nlpsol(f"finger_gait_{finger}", "ipopt", nlp,
+                                 _solver.ipopt_options(print_level=o.print_level))
+        # numeric helper: tip and sphere points (object frame) and their smooth distances, no offsets
+        self._points = ca.Function("gait_points", [q_r, p], [c_obj, s_obj, sd_tip, sd_l],
+                                   ["q_r", "p"], ["p_object_tip", "p_object_spheres", "sd_tip", "sd_l"])
+        self._k = k
+        self._lam = None  # (lam_x, lam_g) of the last solve, for warm starts
+
+    @classmethod
+    def build_count(cls) -> int:
+        """How many FingerGaitNLPs were built in this process (tests assert it does not grow in a plan)."""
+        return cls._n_builds
+
+    def reset(self) -> None:
+        """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""
+        self._lam = None
+
+    def _params(self, q, T, c_goal, delta_tip, delta_l):
+        return np.concatenate([q, T[:3, :3].ravel(order="F"), T[:3, 3], c_goal, [delta_tip], delta_l])
+
+    def _exact(self, q_r, p):
+        c_obj, s_obj, sd_tip, sd_l = self._points(q_r, p)
+        pts = np.vstack([np.asarray(c_obj).reshape(1, 3), np.asarray(s_obj).T.reshape(-1, 3)])
+        exact = np.asarray(self.obj.exact_signed_distance(pts), float).ravel()
+        smooth = np.concatenate([np.asarray(sd_tip).ravel(), np.asarray(sd_l).ravel()])
+        return np.asarray(c_obj).ravel(), exact, smooth
+
+    def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tip_goal: ArrayLike) -> FingerGaitResult:
+        """Move the finger's tip towards `p_object_tip_goal` (3,) (goal tip-sphere centre, object frame, m)
+        from the grasp (`q` (n,) rad, `T_palm_object` (4, 4)); never raises on a failed solve."""
+        o = self.options
+        q = np.asarray(q, dtype=float).copy()
+        T = np.asarray(T_palm_object, dtype=float)
+        c_goal = np.asarray(p_object_tip_goal, dtype=float).reshape(3)
+        x0 = q[self._idx]
+        p0 = self._params(q, T, c_goal, 0.0, np.zeros(self._k))
+        _, exact, smooth = self._exact(x0, p0)
+        delta = exact - smooth  # offsets that make the smooth model exact at the start
+        t_solve, iters, solves = 0.0, 0, 0
+        x = x0
+        res = None
+        for _ in range(o.max_corrections + 1):
+            p = self._params(q, T, c_goal, delta[0], delta[1:])
+            lam_x, lam_g = self._lam if self._lam is not None else (None, None)
+            res = _solver.solve(self._solver, x0=x, p=p, lbx=self._lbx, ubx=self._ubx, lbg=self._lbg,
+                                ubg=self._ubg, lam_x0=lam_x, lam_g0=lam_g)
+            solves += 1
+            t_solve += res.time
+            iters += max(res.iterations, 0)
+            if not np.all(np.isfinite(res.x)):
+                break
+            x = np.clip(res.x, self._lbx, self._ubx)
+            if res.success:
+                self._lam = (res.lam_x, res.lam_g)
+            c_obj, exact, smooth = self._exact(x, p)
+            surface_error = abs(exact[0] - self.hand.tip_radius)
+            clear_ok = self._k == 0 or np.min(exact[1:] - self._radii) >= 0.5 * o.beta
+            if surface_error <= o.surface_tol and clear_ok:
+                break
+            delta = exact - smooth
+        q_new = q.copy()
+        q_new[self._idx] = x
+        c_obj, exact, _ = self._exact(x, self._params(q, T, c_goal, 0.0, np.zeros(self._k)))
+        surface_error = float(abs(exact[0] - self.hand.tip_radius))
+        min_clear = float(np.min(exact[1:] - self._radii)) if self._k else float("inf")
+        step = np.linalg.norm(self.hand.tip_positions(q_new)[self.hand.fingers.index(self.finger)]
+                              - self.hand.tip_positions(q)[self.hand.fingers.index(self.finger)])
+        feasible = (surface_error <= max(o.surface_tol, 1e-4) and min_clear >= 0.0
+                    and step <= o.eta + 1e-6)
+        if not feasible:
+            _log.debug("gait %s infeasible: status %s surface %.2e clearance %.2e step %.4f",
+                       self.finger, res.status, surface_error, min_clear, step)
+        return FingerGaitResult(q=q_new, p_object_tip=c_obj, status=res.status, success=bool(feasible),
+                                iterations=iters, solves=solves, solve_time=t_solve,
+                                surface_error=surface_error, min_clearance=min_clear)
+

@@ -1,0 +1,286 @@
+"""OPT2 — in-grasp manipulation: move the whole hand, and the object with it, keeping the contacts.
+
+Two targets: a desired object pose (`method="pose"`: the SVD form of the paper, and the final in-grasp
+move) or the reachable workspaces of the fingers (`method="sd"`).
+
+    >>> nlp = InGraspNLP(hand, obj, "pose")                # built once per (hand, object, method)
+    >>> result = nlp.solve(q, T_palm_object, p_object_tips, T_target=T_palm_object_goal)
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import ConvexHull
+
+from regrasp_casadi import solver as _solver
+from regrasp_casadi import terms
+from regrasp_casadi.transforms import make_T
+
+if TYPE_CHECKING:
+    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.hand import Hand
+
+__all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "workspace_hull"]
+
+_log = logging.getLogger(__name__)
+
+_CM = 1e2  # positions in the objective: m → cm
+_MM = 1e3  # distance constraints: m → mm
+
+
+@dataclass(frozen=True)
+class InGraspOptions:
+    """Knobs of OPT2 (paper §III-B); SI units."""
+
+    k_pos: float = 1000.0
+    """k1, weight of the relaxed-rigidity position term E_pos."""
+    k_orient: float = 10.0
+    """k2, weight of the relaxed-rigidity orientation term E_or."""
+    beta: float = 0.001
+    """β, clearance of every non-tip sphere of the hand from the object, m."""
+    max_translation: float = 0.03
+    """Trust region: largest object translation per reposing, per axis, m."""
+    max_rotation: float = 0.3
+    """Trust region: bound on each component of the Cayley vector tan(θ/2)·axis (0.3 ≈ 33°)."""
+    tau_hull: float = 0.002
+    """Temperature of the smooth distance to the workspace hulls and of the smooth max(0, ·), m."""
+    tau: float | None = None
+    """Temperature of the object's smooth signed distance (None: the object's default), m."""
+    max_corrections: int = 2
+    """Re-solves with exact-distance offsets when a sphere's exact clearance is below β/2."""
+    print_level: int = 0
+    """IPOPT print level."""
+
+
+@dataclass(frozen=True)
+class InGraspResult:
+    """The outcome of one in-grasp move."""
+
+    q: NDArray[np.float64]
+    """Joint angles after the move, (n,) rad."""
+    T_palm_object: NDArray[np.float64]
+    """Object pose after the move, (4, 4)."""
+    status: str
+    """IPOPT return_status of the last solve."""
+    success: bool
+    """True when the solver converged and the exact clearance holds."""
+    iterations: int
+    """IPOPT iterations over all solves."""
+    solve_time: float
+    """Time inside IPOPT, s."""
+    max_slip: float
+    """Largest displacement of a tip centre relative to the object, m."""
+    min_clearance: float
+    """Smallest exact distance of a non-tip sphere to the object, m."""
+
+
+@dataclass(frozen=True)
+class WorkspaceHull:
+    """Convex hull R_r of a finger's reachable tip-centre positions, palm frame: {x : n_i·x ≤ h_i}."""
+
+    normals: NDArray[np.float64]
+    """(k, 3) unit outward normals."""
+    offsets: NDArray[np.float64]
+    """(k,) support values, m."""
+
+
+def workspace_hull(hand: Hand, finger: str, n_samples: int = 4000, seed: int = 0,
+                   max_planes: int = 64) -> WorkspaceHull:
+    """Reachable-workspace hull of `finger` from tip samples over the joint limits (paper §III-B).
+
+    The hull's face planes are merged (coplanar facets) and, if more than `max_planes`, the planes of the
+    largest facets are kept with their exact support values, which can only enlarge the polytope.
+    """
+    pts = hand.tip_workspace_samples(finger, n=n_samples, seed=seed)
+    hull = ConvexHull(pts)
+    normals = hull.equations[:, :3]
+    # merge near-duplicate planes, keep the largest-area representatives
+    areas = np.array([_facet_area(pts[s]) for s in hull.simplices])
+    order = np.argsort(-areas)
+    kept: list[int] = []
+    for i in order:
+        if all(normals[i] @ normals[j] < 0.999 for j in kept):
+            kept.append(i)
+        if len(kept) >= max_planes:
+            break
+    n = normals[kept]
+    h = np.max(pts @ n.T, axis=0)
+    return WorkspaceHull(normals=n, offsets=h)
+
+
+def _facet_area(tri: NDArray[np.float64]) -> float:
+    return 0.5 * float(np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])))
+
+
+class InGraspNLP:
+    r"""OPT2, in-grasp manipulation (Sundaralingam & Hermans, ICRA 2018, §III-B), all joints Θ and the
+    object pose (R, t) = (C(w) R₀, t₀ + Δt) as decision variables:
+
+    .. math::
+        \min_{\Theta, \Delta t, w} \; E_{des} + k_1 E_{pos}(\Theta) + k_2 E_{or}(\Theta)
+        \quad \text{s.t.} \quad \Theta_{min} \preceq \Theta \preceq \Theta_{max},\;
+        SD(R^T(FK_l(\Theta) - t), M) + \delta_l - \rho_l \ge \beta \;\; \forall \text{non-tip spheres } l
+
+    Relaxed rigidity (Sundaralingam & Hermans, 2017): with c_r the tip-sphere centres and
+    R_{O,r} the tip orientations in the object frame at the start,
+    ``E_pos = Σ_r ||FK_r(Θ) − (R c_r + t)||²`` (cm²) and ``E_or = Σ_r ||R_r(Θ) − R R_{O,r}||_F²``.
+
+    * ``method="pose"`` (the paper's SVD form, and the final in-grasp move):
+      ``E_des = ||t − t*||² + (ℓ²/2) ||R − R*||_F²`` (cm², ℓ the object's radius in cm), with the target
+      pose (R*, t*) passed as a parameter; the planner computes it by Kabsch / Besl–McKay.
+    * ``method="sd"``: ``E_des = Σ_r max(0, SD(R g_r + t, R_r))`` (cm), g_r the goal tip centres in the
+      object frame and R_r the finger's reachable-workspace hull; max and SD are smoothed (``tau_hull``).
+
+    A trust region bounds |Δt| and |w| per reposing. δ_l are exact-distance offsets (see FingerGaitNLP).
+    """
+
+    _n_builds = 0
+
+    def __init__(self, hand: Hand, obj: ObjectModel, method: Literal["pose", "sd"] = "pose",
+                 options: InGraspOptions | None = None):
+        if method not in ("pose", "sd"):
+            raise ValueError(f"method must be 'pose' or 'sd', got {method!r}")
+        InGraspNLP._n_builds += 1
+        self.hand, self.obj, self.method = hand, obj, method
+        self.options = o = options or InGraspOptions()
+        n, m = hand.n_joints, len(hand.fingers)
+        radii = np.asarray(hand.sphere_radii(None), dtype=float)
+        k = radii.size
+        self._radii, self._k, self._n, self._m = radii, k, n, m
+        sd = obj.signed_distance_function(o.tau)
+        ell_cm = _CM * 0.5 * float(np.linalg.norm(obj.mesh.extents))
+
+        # decision variables
+        q = ca.SX.sym("q", n)
+        dt = ca.SX.sym("dt", 3)
+        w = ca.SX.sym("w", 3)
+        x = ca.vertcat(q, dt, w)
+        # parameters
+        R0_vec = ca.SX.sym("R0_palm_object", 9)
+        t0 = ca.SX.sym("t0_palm_object", 3)
+        c_tips = ca.SX.sym("p_object_tips", 3, m)
+        R_tips = ca.SX.sym("R_object_tips", 9, m)
+        delta_l = ca.SX.sym("delta_l", k)
+        if method == "pose":
+            R_star_vec = ca.SX.sym("R_target", 9)
+            t_star = ca.SX.sym("t_target", 3)
+            target = ca.vertcat(R_star_vec, t_star)
+        else:
+            g_tips = ca.SX.sym("p_object_tips_goal", 3, m)
+            target = ca.vec(g_tips)
+        p = ca.vertcat(R0_vec, t0, ca.vec(c_tips), ca.vec(R_tips), delta_l, target)
+        R, t = terms.pose_from_params(ca.reshape(R0_vec, 3, 3), t0, dt, w)
+
+        # objective
+        tips_palm = hand.tip_positions_function()(q)  # (3, m)
+        e_pos = 0
+        e_or = 0
+        for r, finger in enumerate(hand.fingers):
+            e_pos += ca.sumsqr(_CM * (tips_palm[:, r] - (R @ c_tips[:, r] + t)))
+            R_tip = hand.link_rotation_function(hand.tip_links[finger])(q)
+            e_or += terms.rotation_error_sq(R_tip, R @ ca.reshape(R_tips[:, r], 3, 3))
+        if method == "pose":
+            e_des = ca.sumsqr(_CM * (t - t_star)) + 0.5 * ell_cm**2 * terms.rotation_error_sq(
+                R, ca.reshape(R_star_vec, 3, 3))
+        else:
+            self.hulls = [workspace_hull(hand, f) for f in hand.fingers]
+            e_des = 0
+            for r, hull in enumerate(self.hulls):
+                d = terms.hull_signed_distance(hull.normals, hull.offsets, R @ g_tips[:, r] + t, o.tau_hull)
+                e_des += _CM * terms.softplus(d, o.tau_hull)
+        f = e_des + o.k_pos * e_pos + o.k_orient * e_or
+        # constraints
+        s_obj = terms.to_object_frame(R, t, hand.sphere_centers_function(None)(q))
+        sd_l = terms.smooth_signed_distances(sd, s_obj)
+        g = _MM * (sd_l + delta_l - ca.DM(radii))
+        # bounds
+        big_t, big_w = o.max_translation, o.max_rotation
+        self._lbx = np.concatenate([hand.q_lower, np.full(3, -big_t), np.full(3, -big_w)])
+        self._ubx = np.concatenate([hand.q_upper, np.full(3, big_t), np.full(3, big_w)])
+        self._lbg = np.full(k, _MM * o.beta)
+        self._ubg = np.full(k, np.inf)
+        # solver
+        self._solver = ca.nlpsol(f"in_grasp_{method}", "ipopt", {"x": x, "p": p, "f": f, "g": g},
+                                 _solver.ipopt_options(print_level=o.print_level))
+        self._points = ca.Function("in_grasp_points", [x, p], [s_obj, sd_l, R, t],
+                                   ["x", "p"], ["p_object_spheres", "sd_l", "R_palm_object", "t_palm_object"])
+        self._lam = None
+
+    @classmethod
+    def build_count(cls) -> int:
+        """How many InGraspNLPs were built in this process."""
+        return cls._n_builds
+
+    def reset(self) -> None:
+        """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""
+        self._lam = None
+
+    def _exact_clearance(self, x, p):
+        s_obj, sd_l, R, t = self._points(x, p)
+        exact = np.asarray(self.obj.exact_signed_distance(np.asarray(s_obj).T), float).ravel()
+        return exact, np.asarray(sd_l, float).ravel(), make_T(np.asarray(R), np.asarray(t).ravel())
+
+    def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tips: ArrayLike, *,
+              T_target: ArrayLike | None = None,
+              p_object_tips_goal: ArrayLike | None = None) -> InGraspResult:
+        """Repose the object from the grasp (`q` (n,), `T_palm_object` (4, 4)) whose tip-sphere centres are
+        `p_object_tips` (m, 3) (object frame, m), towards `T_target` (4, 4) (method "pose") or so that the
+        goal tip centres `p_object_tips_goal` (m, 3) enter the fingers' workspaces (method "sd")."""
+        o = self.options
+        hand = self.hand
+        q = np.asarray(q, float)
+        T0 = np.asarray(T_palm_object, float)
+        c_tips = np.asarray(p_object_tips, float).reshape(self._m, 3)
+        fk = hand.fk(q)
+        R_tips = np.stack([(T0[:3, :3].T @ fk[hand.tip_links[f]][:3, :3]).ravel(order="F")
+                           for f in hand.fingers], axis=1)
+        if self.method == "pose":
+            if T_target is None:
+                raise ValueError("method 'pose' needs T_target")
+            Tt = np.asarray(T_target, float)
+            target = np.concatenate([Tt[:3, :3].ravel(order="F"), Tt[:3, 3]])
+        else:
+            if p_object_tips_goal is None:
+                raise ValueError("method 'sd' needs p_object_tips_goal")
+            target = np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T.ravel(order="F")
+
+        def params(delta):
+            return np.concatenate([T0[:3, :3].ravel(order="F"), T0[:3, 3], c_tips.T.ravel(order="F"),
+                                   R_tips.ravel(order="F"), delta, target])
+
+        x = np.concatenate([q, np.zeros(6)])
+        exact, smooth, _ = self._exact_clearance(x, params(np.zeros(self._k)))
+        delta = exact - smooth
+        t_solve, iters = 0.0, 0
+        res = None
+        for _ in range(o.max_corrections + 1):
+            p = params(delta)
+            lam_x, lam_g = self._lam if self._lam is not None else (None, None)
+            res = _solver.solve(self._solver, x0=np.concatenate([q, np.zeros(6)]), p=p, lbx=self._lbx,
+                                ubx=self._ubx, lbg=self._lbg, ubg=self._ubg, lam_x0=lam_x, lam_g0=lam_g)
+            t_solve += res.time
+            iters += max(res.iterations, 0)
+            if not np.all(np.isfinite(res.x)):
+                break
+            x = np.clip(res.x, self._lbx, self._ubx)
+            if res.success:
+                self._lam = (res.lam_x, res.lam_g)
+            exact, smooth, _ = self._exact_clearance(x, p)
+            if np.min(exact - self._radii) >= 0.5 * o.beta:
+                break
+            delta = exact - smooth
+        exact, _, T_new = self._exact_clearance(x, params(np.zeros(self._k)))
+        q_new = x[: self._n]
+        tips_obj = (hand.tip_positions(q_new) - T_new[:3, 3]) @ T_new[:3, :3]
+        max_slip = float(np.max(np.linalg.norm(tips_obj - c_tips, axis=1)))
+        min_clear = float(np.min(exact - self._radii)) if self._k else float("inf")
+        ok = bool(res.success and min_clear >= 0.0 and np.all(np.isfinite(x)))
+        return InGraspResult(q=q_new, T_palm_object=T_new, status=res.status, success=ok,
+                             iterations=iters, solve_time=t_solve, max_slip=max_slip,
+                             min_clearance=min_clear)

@@ -1,0 +1,315 @@
+"""The regrasp planner (Algorithm 1 of Sundaralingam & Hermans, ICRA 2018): alternate finger gaits
+(OPT1) and in-grasp reposing (OPT2) until every contact is within ζ of its goal, then move the object to
+the desired pose.
+
+    >>> plan = plan_regrasp(grasp0, grasp_goal, method="svd")
+    >>> plan.status, plan.iterations, plan.final_error
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
+from regrasp_casadi.grasp import Plan, PlanStep
+from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions
+from regrasp_casadi.transforms import inv_T, kabsch, rotation_angle
+
+if TYPE_CHECKING:
+    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.grasp import Grasp
+    from regrasp_casadi.hand import Hand
+
+__all__ = ["PlannerOptions", "plan_regrasp", "gait_pattern", "clear_nlp_cache"]
+
+_log = logging.getLogger(__name__)
+
+ProgressCallback = Callable[[int, int, float], None]
+
+
+@dataclass(frozen=True)
+class PlannerOptions:
+    """Options of `plan_regrasp`; the paper's values are the defaults (SI units)."""
+
+    method: Literal["svd", "sd"] = "svd"
+    """OPT2's E_des: "svd" (target pose by Kabsch) or "sd" (distance to the workspace hulls)."""
+    zeta: float = 0.006
+    """ζ, threshold on the largest contact error, m (paper: 6 mm)."""
+    eta: float = 0.01
+    """η, largest fingertip displacement of one gait, m (paper: 1 cm)."""
+    beta: float = 0.001
+    """β, clearance of the hand's non-tip spheres from the object, m (paper: 0.1 cm)."""
+    max_iters: int = 50
+    """Largest number of gait/reposing iterations (paper: 50)."""
+    gait: tuple[str, ...] | None = None
+    """Gait pattern P (finger order); None: the paper's rule (see `gait_pattern`)."""
+    k_pos: float = 1000.0
+    """k1, weight of the relaxed-rigidity position term."""
+    k_orient: float = 10.0
+    """k2, weight of the relaxed-rigidity orientation term."""
+    final_move: bool = True
+    """Finish with in-grasp moves to the desired object pose (Algorithm 1, last lines)."""
+    max_final_moves: int = 6
+    """Largest number of final in-grasp moves (each bounded by the OPT2 trust region)."""
+    final_pose_tol: float = 1e-3
+    """Stop the final moves when the object is this close to the desired pose (m, and rad × 0.1 m)."""
+    skip_tol: float = 1e-4
+    """A finger whose contact is this close to its goal is not moved, m."""
+    tau: float | None = None
+    """Temperature of the smooth signed distance (None: the object's default), m."""
+    surface_tol: float = 5e-5
+    """Exact-contact tolerance of OPT1's correction loop, m."""
+    print_level: int = 0
+    """IPOPT print level (0 = quiet)."""
+
+
+def gait_pattern(hand: Hand, contacts_object: NDArray[np.float64],
+                 goal_contacts_object: NDArray[np.float64]) -> tuple[str, ...]:
+    """The paper's gait-pattern rule (§IV): {index, middle, ring, thumb} when the index finger's goal
+    contact is farther from the middle finger than from the index finger, else {thumb, ring, middle, index}.
+
+    Hands without fingers named index and middle use their finger order.
+    """
+    fingers = tuple(hand.fingers)
+    if "index" not in fingers or "middle" not in fingers:
+        return fingers
+    i, m = fingers.index("index"), fingers.index("middle")
+    goal = goal_contacts_object[i]
+    forward = tuple(f for f in ("index", "middle", "ring", "thumb") if f in fingers)
+    forward += tuple(f for f in fingers if f not in forward)
+    if np.linalg.norm(goal - contacts_object[m]) > np.linalg.norm(goal - contacts_object[i]):
+        return forward
+    return tuple(reversed(forward))
+
+
+# ---------------------------------------------------------------------------------------------------------
+# NLP cache: each NLP is built once per (hand, object, finger/method, options) and reused across plans.
+
+_CACHE: OrderedDict[tuple, object] = OrderedDict()
+_CACHE_SIZE = 64
+
+
+def clear_nlp_cache() -> None:
+    """Forget every cached NLP (they are rebuilt on the next plan)."""
+    _CACHE.clear()
+
+
+def _cached(key: tuple, build: Callable[[], object]) -> tuple[object, float]:
+    """The cached NLP for `key` (built on a miss) and the build time spent now, s."""
+    if key in _CACHE:
+        _CACHE.move_to_end(key)
+        return _CACHE[key], 0.0
+    t0 = time.perf_counter()
+    nlp = build()
+    _CACHE[key] = nlp
+    while len(_CACHE) > _CACHE_SIZE:
+        _CACHE.popitem(last=False)
+    return nlp, time.perf_counter() - t0
+
+
+class _Run:
+    """State of one planning run: the steps so far, timing, and the NLPs it uses."""
+
+    def __init__(self, hand: Hand, obj: ObjectModel, goal_contacts: NDArray, goal_tips: NDArray,
+                 options: PlannerOptions):
+        self.hand, self.obj, self.options = hand, obj, options
+        self.goal_contacts, self.goal_tips = goal_contacts, goal_tips
+        self.steps: list[PlanStep] = []
+        self.timing = {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0, "total": 0.0}
+        self.solves = {"opt1": 0, "opt2": 0}
+        self.gait: tuple[str, ...] = tuple(hand.fingers)
+        o = options
+        self.gait_options = FingerGaitOptions(eta=o.eta, beta=o.beta, surface_tol=o.surface_tol, tau=o.tau,
+                                              print_level=o.print_level)
+        self.in_grasp_options = InGraspOptions(k_pos=o.k_pos, k_orient=o.k_orient, beta=o.beta, tau=o.tau,
+                                               print_level=o.print_level)
+
+    def gait_nlp(self, finger: str) -> FingerGaitNLP:
+        key = ("gait", id(self.hand), id(self.obj), finger, self.gait_options)
+        nlp, dt = _cached(key, lambda: FingerGaitNLP(self.hand, self.obj, finger, self.gait_options))
+        self.timing["build"] += dt
+        return nlp  # type: ignore[return-value]
+
+    def in_grasp_nlp(self, method: str) -> InGraspNLP:
+        key = ("in_grasp", id(self.hand), id(self.obj), method, self.in_grasp_options)
+        nlp, dt = _cached(key, lambda: InGraspNLP(self.hand, self.obj, method, self.in_grasp_options))
+        self.timing["build"] += dt
+        return nlp  # type: ignore[return-value]
+
+    def tips_object(self, q: NDArray, T_palm_object: NDArray) -> NDArray:
+        """Tip-sphere centres (m, 3) in the object frame."""
+        return (self.hand.tip_positions(q) - T_palm_object[:3, 3]) @ T_palm_object[:3, :3]
+
+    def add_step(self, kind: str, finger: str | None, q: NDArray, T_palm_object: NDArray, status: str,
+                 solve_time: float) -> PlanStep:
+        contacts, _ = self.obj.closest_points(self.tips_object(q, T_palm_object))
+        error = np.linalg.norm(contacts - self.goal_contacts, axis=1)
+        step = PlanStep(kind=kind, finger=finger, q=np.array(q, dtype=float),
+                        T_palm_object=np.array(T_palm_object, dtype=float),
+                        contacts_object=np.asarray(contacts, dtype=float), contact_error=error,
+                        solver_status=status, solve_time=float(solve_time))
+        self.steps.append(step)
+        return step
+
+
+def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | None = None,
+                 progress: ProgressCallback | None = None, **overrides) -> Plan:
+    """Plan an in-hand regrasp from `grasp0` to `grasp_goal` (Algorithm 1).
+
+    Args:
+        grasp0: the initial grasp; it must carry joint angles (`Grasp.from_joints`).
+        grasp_goal: the desired grasp: contacts (object frame) and desired object pose.
+        options: a `PlannerOptions`; keyword `overrides` replace its fields (e.g. ``method="sd"``).
+        progress: optional callable ``progress(iteration, max_iters, average_error_m)`` called after
+            every iteration.
+
+    Returns:
+        A `Plan` whose `status` says why it stopped: "converged", "iteration_limit", "solver_failure"
+        (with the step and IPOPT's status in `status_detail`) or "invalid_input". A failed solve never
+        raises: the plan ends with the steps so far.
+    """
+    t_start = time.perf_counter()
+    options = replace(options or PlannerOptions(), **overrides)
+    if options.gait is not None:
+        options = replace(options, gait=tuple(options.gait))
+    hand, obj = grasp0.hand, grasp0.obj
+    goal_contacts = np.asarray(grasp_goal.contacts_object, dtype=float)
+    goal_T = np.asarray(grasp_goal.T_palm_object, dtype=float)
+    fingers = tuple(hand.fingers)
+
+    def make_plan(run: _Run | None, status: str, detail: str, iterations: int, errors: list[float]) -> Plan:
+        steps = tuple(run.steps) if run else ()
+        timing = dict(run.timing) if run else {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0}
+        timing["total"] = time.perf_counter() - t_start
+        timing["other"] = max(0.0, timing["total"] - timing["build"] - timing["opt1"] - timing["opt2"])
+        opts = asdict(options)
+        opts["gait"] = list(opts["gait"]) if opts["gait"] is not None else None
+        if run is not None:
+            opts["gait_used"] = list(run.gait)
+            opts["solves"] = dict(run.solves)
+        return Plan(steps=steps, goal_contacts_object=goal_contacts, goal_T_palm_object=goal_T,
+                    fingers=fingers, hand_spec=hand.spec(), object_spec=dict(obj.spec), method=options.method,
+                    status=status, status_detail=detail, iterations=iterations,
+                    iteration_errors=np.asarray(errors, dtype=float), timing=timing, options=opts)
+
+    problems = _check_input(grasp0, grasp_goal, options)
+    if problems:
+        return make_plan(None, "invalid_input", problems, 0, [])
+
+    goal_tips = np.asarray(grasp_goal.tip_centers_object, dtype=float)
+    run = _Run(hand, obj, goal_contacts, goal_tips, options)
+    q = np.asarray(grasp0.q, dtype=float)
+    T = np.asarray(grasp0.T_palm_object, dtype=float)
+    step = run.add_step("initial", None, q, T, "", 0.0)
+    run.gait = options.gait or gait_pattern(hand, step.contacts_object, goal_contacts)
+    gait_nlps = {f: run.gait_nlp(f) for f in run.gait}
+    repose_nlp = run.in_grasp_nlp("pose" if options.method == "svd" else "sd")
+    final_nlp = run.in_grasp_nlp("pose") if options.final_move else None
+    for nlp in [*gait_nlps.values(), repose_nlp, final_nlp]:
+        if nlp is not None:
+            nlp.reset()  # same input, same plan: no warm start carried over from another plan
+    errors = [float(np.mean(step.contact_error))]
+    err = float(np.max(step.contact_error))
+    n = 0
+    while err > options.zeta and n < options.max_iters:
+        for finger in run.gait:
+            r = fingers.index(finger)
+            if run.steps[-1].contact_error[r] <= options.skip_tol:
+                continue
+            res = gait_nlps[finger].solve(q, T, goal_tips[r])
+            run.timing["opt1"] += res.solve_time
+            run.solves["opt1"] += res.solves
+            if not res.success:
+                if res.status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level",
+                                      "Maximum_Iterations_Exceeded"):
+                    return make_plan(run, "solver_failure",
+                                     f"finger gait of {finger} at step {len(run.steps)}: IPOPT {res.status} "
+                                     f"(surface error {res.surface_error * 1e3:.3f} mm, clearance "
+                                     f"{res.min_clearance * 1e3:.3f} mm)", n, errors)
+                _log.debug("gait %s not feasible (%s); finger stays", finger, res.status)
+                continue
+            moved = np.linalg.norm(hand.tip_positions(res.q)[r] - hand.tip_positions(q)[r])
+            if moved < 1e-5:
+                continue
+            q = res.q
+            run.add_step("gait", finger, q, T, res.status, res.solve_time)
+        err = float(np.max(run.steps[-1].contact_error))
+        if err > options.zeta:
+            tips = run.tips_object(q, T)
+            if options.method == "svd":
+                T_rel = kabsch(run.steps[-1].contacts_object, goal_contacts)  # X_goal ≈ T_rel · X
+                target = {"T_target": T @ inv_T(T_rel)}  # so that o'·X_goal ≈ o·X
+            else:
+                target = {"p_object_tips_goal": goal_tips}
+            res2 = repose_nlp.solve(q, T, tips, **target)
+            run.timing["opt2"] += res2.solve_time
+            run.solves["opt2"] += 1
+            if not res2.success:
+                return make_plan(run, "solver_failure",
+                                 f"reposing at step {len(run.steps)}: IPOPT {res2.status} (clearance "
+                                 f"{res2.min_clearance * 1e3:.3f} mm)", n, errors)
+            q, T = res2.q, res2.T_palm_object
+            step = run.add_step("repose", None, q, T, res2.status, res2.solve_time)
+            err = float(np.max(step.contact_error))
+        n += 1
+        errors.append(float(np.mean(run.steps[-1].contact_error)))
+        if progress is not None:
+            progress(n, options.max_iters, errors[-1])
+    converged = err <= options.zeta
+    if final_nlp is not None and converged:
+        for _ in range(options.max_final_moves):
+            if _pose_distance(T, goal_T, obj) <= options.final_pose_tol:
+                break
+            res3 = final_nlp.solve(q, T, run.tips_object(q, T), T_target=goal_T)
+            run.timing["opt2"] += res3.solve_time
+            run.solves["opt2"] += 1
+            if not res3.success:
+                return make_plan(run, "solver_failure",
+                                 f"final in-grasp move at step {len(run.steps)}: IPOPT {res3.status}", n,
+                                 errors)
+            progress_made = _pose_distance(T, goal_T, obj) - _pose_distance(res3.T_palm_object, goal_T, obj)
+            q, T = res3.q, res3.T_palm_object
+            run.add_step("final", None, q, T, res3.status, res3.solve_time)
+            if progress_made < 1e-4:
+                break
+        err = float(np.max(run.steps[-1].contact_error))
+        converged = err <= options.zeta
+    if converged:
+        detail = (f"largest contact error {err * 1e3:.2f} mm ≤ ζ = {options.zeta * 1e3:.1f} mm; object "
+                  f"{_pose_distance(T, goal_T, obj) * 1e3:.2f} mm from the desired pose")
+        return make_plan(run, "converged", detail, n, errors)
+    return make_plan(run, "iteration_limit",
+                     f"largest contact error {err * 1e3:.2f} mm > ζ after {n} iterations", n, errors)
+
+
+def _pose_distance(T_a: NDArray, T_b: NDArray, obj: ObjectModel) -> float:
+    """Pose distance, m: translation plus rotation angle times the object's radius."""
+    radius = 0.5 * float(np.linalg.norm(obj.mesh.extents))
+    return float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]) + radius * rotation_angle(T_a[:3, :3], T_b[:3, :3]))
+
+
+def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> str:
+    """Why the input cannot be planned ("" when it can)."""
+    if grasp0.q is None:
+        return "the initial grasp has no joint angles (build it with Grasp.from_joints)"
+    if grasp_goal.hand is not grasp0.hand and grasp_goal.hand.spec() != grasp0.hand.spec():
+        return "the initial and desired grasps use different hands"
+    if grasp_goal.obj is not grasp0.obj and grasp_goal.obj.spec != grasp0.obj.spec:
+        return "the initial and desired grasps use different objects"
+    if options.method not in ("svd", "sd"):
+        return f"unknown method {options.method!r} (use 'svd' or 'sd')"
+    if options.gait is not None:
+        unknown = [f for f in options.gait if f not in grasp0.hand.fingers]
+        if unknown:
+            return f"gait names unknown fingers {unknown}; the hand has {list(grasp0.hand.fingers)}"
+    if not (options.zeta > 0 and options.eta > 0 and options.beta >= 0 and options.max_iters >= 0):
+        return "zeta and eta must be positive, beta and max_iters non-negative"
+    return ""

@@ -1,0 +1,99 @@
+"""OPT1 (FingerGaitNLP) on the shipped box problem: goal reached, constraints hold with exact geometry."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from regrasp_casadi.finger_gait import FingerGaitNLP
+from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.transforms import inv_T, transform_points
+
+BOX_PROBLEM = Path(__file__).resolve().parents[1] / "problems" / "box_rotate.yaml"
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return RegraspProblem.load(BOX_PROBLEM)
+
+
+def _surface_target(problem, finger: str, offset: np.ndarray) -> np.ndarray:
+    """A goal tip centre (object frame): the current contact moved by `offset` along the surface."""
+    g0 = problem.grasp0
+    r = problem.hand.fingers.index(finger)
+    contact = g0.contacts_object[r] + offset
+    closest, _ = problem.obj.closest_points(contact[None])
+    normal = problem.obj.surface_normals(closest)[0]
+    return closest[0] + problem.hand.tip_radius * normal
+
+
+def _tangent(problem, finger: str) -> np.ndarray:
+    g0 = problem.grasp0
+    r = problem.hand.fingers.index(finger)
+    n = problem.obj.surface_normals(g0.contacts_object[r][None])[0]
+    t = np.cross(n, [0.0, 0.0, 1.0])
+    if np.linalg.norm(t) < 1e-6:
+        t = np.cross(n, [1.0, 0.0, 0.0])
+    return t / np.linalg.norm(t)
+
+
+def _check_constraints(problem, finger, q_before, q_after, eta, beta):
+    hand, obj, T = problem.hand, problem.obj, problem.grasp0.T_palm_object
+    r = hand.fingers.index(finger)
+    idx = hand.finger_joints[finger]
+    others = np.setdiff1d(np.arange(hand.n_joints), idx)
+    assert np.array_equal(q_after[others], q_before[others])
+    assert np.all(q_after >= hand.q_lower - 1e-9) and np.all(q_after <= hand.q_upper + 1e-9)
+    tip = transform_points(inv_T(T), hand.tip_positions(q_after)[r][None])
+    assert abs(obj.exact_signed_distance(tip)[0] - hand.tip_radius) <= 1e-4
+    spheres = transform_points(inv_T(T), hand.sphere_centers(q_after, finger))
+    clearance = obj.exact_signed_distance(spheres) - hand.sphere_radii(finger)
+    assert clearance.min() >= beta - 2e-4
+    step = np.linalg.norm(hand.tip_positions(q_after)[r] - hand.tip_positions(q_before)[r])
+    assert step <= eta + 1e-6
+    return step
+
+
+@pytest.mark.parametrize("finger", ["index", "thumb"])
+def test_gait_reaches_a_near_goal(problem, finger):
+    nlp = FingerGaitNLP(problem.hand, problem.obj, finger)
+    goal = _surface_target(problem, finger, 0.006 * _tangent(problem, finger))
+    g0 = problem.grasp0
+    res = nlp.solve(g0.q, g0.T_palm_object, goal)
+    assert res.success, res.status
+    assert np.linalg.norm(res.p_object_tip - goal) <= 5e-4
+    _check_constraints(problem, finger, np.asarray(g0.q), res.q, nlp.options.eta, nlp.options.beta)
+
+
+def test_gait_far_goal_takes_a_step_of_eta(problem):
+    nlp = FingerGaitNLP(problem.hand, problem.obj, "middle")
+    goal = _surface_target(problem, "middle", 0.04 * _tangent(problem, "middle"))
+    g0 = problem.grasp0
+    r = problem.hand.fingers.index("middle")
+    before = np.linalg.norm(g0.tip_centers_object[r] - goal)
+    res = nlp.solve(g0.q, g0.T_palm_object, goal)
+    assert res.success, res.status
+    step = _check_constraints(problem, "middle", np.asarray(g0.q), res.q, nlp.options.eta, nlp.options.beta)
+    after = np.linalg.norm(res.p_object_tip - goal)
+    assert step == pytest.approx(nlp.options.eta, abs=1e-5)  # the step bound is active
+    assert after < before - 0.5 * nlp.options.eta  # and the tip got closer by a good part of it
+
+
+def test_resolving_does_not_rebuild(problem):
+    nlp = FingerGaitNLP(problem.hand, problem.obj, "ring")
+    builds = FingerGaitNLP.build_count()
+    g0 = problem.grasp0
+    for k in range(3):
+        goal = _surface_target(problem, "ring", 0.003 * (k + 1) * _tangent(problem, "ring"))
+        nlp.solve(g0.q, g0.T_palm_object, goal)
+    assert FingerGaitNLP.build_count() == builds
+
+
+def test_gait_solution_is_deterministic(problem):
+    goal = _surface_target(problem, "index", 0.02 * _tangent(problem, "index"))
+    g0 = problem.grasp0
+    a = FingerGaitNLP(problem.hand, problem.obj, "index").solve(g0.q, g0.T_palm_object, goal)
+    b = FingerGaitNLP(problem.hand, problem.obj, "index").solve(g0.q, g0.T_palm_object, goal)
+    assert np.array_equal(a.q, b.q)
