@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import logging
 import runpy
+import signal
 import sys
 import time
 import traceback
@@ -116,6 +117,8 @@ def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, ela
     err = plan.final_error
     print(f"plan: {plan.status} after {plan.iterations} iterations, {len(plan.steps)} steps "
           f"({', '.join(f'{n} {k}' for k, n in kinds.items())}), method {plan.method}")
+    if plan.status != "converged" and plan.status_detail:
+        print(f"  ({' '.join(plan.status_detail.split())})")
     print(f"final average contact error: {err * 1e3:.2f} mm; planning time {elapsed:.2f} s")
     print(f"verify: {'OK' if report.ok else f'FAILED ({len(report.violations)} violations)'}")
     for v in report.violations[:3]:
@@ -147,13 +150,22 @@ def _load_plan(path: str) -> Plan:
 def _view_live(plan: Plan, hand=None, obj=None) -> int:
     from regrasp_casadi.viewer import show
 
-    url = show(plan, hand=hand, obj=obj)
-    print(f"viewer: {url}  (Ctrl-C to stop)", flush=True)
+    def stop(signum, frame):  # SIGTERM ends like Ctrl-C, so that the Meshcat server is shut down
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, stop)
     try:
+        url = show(plan, hand=hand, obj=obj)
+        print(f"viewer: {url}  (Ctrl-C to stop)", flush=True)
         while True:
             time.sleep(1.0)
     except KeyboardInterrupt:
         print("", file=sys.stderr)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        from regrasp_casadi.viewer import stop_live_viewers
+
+        stop_live_viewers()
     return EXIT_OK
 
 

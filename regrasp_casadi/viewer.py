@@ -43,7 +43,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.grasp import Plan
     from regrasp_casadi.hand import Hand
 
-__all__ = ["Keyframe", "plan_keyframes", "step_times", "write_html", "show", "scene_html"]
+__all__ = ["Keyframe", "plan_keyframes", "step_times", "write_html", "show", "scene_html",
+           "stop_live_viewers"]
 
 logger = logging.getLogger(__name__)
 
@@ -573,3 +574,15 @@ def show(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, f
     return vis.url()
 
 
+
+
+def stop_live_viewers() -> None:
+    """Terminate the Meshcat server subprocesses started by `show` (they also end with Python)."""
+    while LIVE_VIEWERS:
+        proc = getattr(LIVE_VIEWERS.pop().window, "server_proc", None)
+        if proc is not None and proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(timeout=5)
+            except Exception:  # noqa: BLE001 - best effort, then kill
+                proc.kill()

@@ -238,3 +238,24 @@ def test_write_html_is_one_small_self_contained_file(plan, hand, obj, tmp_path):
 def test_import_viewer_does_not_import_meshcat():
     code = "import sys, regrasp_casadi.viewer, regrasp_casadi.cli; assert 'meshcat' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_show_serves_the_scene_on_localhost(plan, hand, obj, capsys):
+    import base64
+    import re
+
+    import umsgpack
+
+    try:
+        url = viewer.show(plan, hand=hand, obj=obj, fps=4)
+        assert url.startswith("http://127.0.0.1:")
+        assert capsys.readouterr().out == ""          # meshcat's own banner is swallowed
+        html = viewer.LIVE_VIEWERS[-1].static_html()  # the scene as the server holds it
+    finally:
+        procs = [v.window.server_proc for v in viewer.LIVE_VIEWERS]
+        viewer.stop_live_viewers()
+    assert all(p.poll() is not None for p in procs)
+    blobs = re.findall(r'base64,([A-Za-z0-9+/=]+)"', html)
+    paths = {umsgpack.unpackb(base64.b64decode(b))["path"] for b in blobs}
+    assert "/meshcat/regrasp/object/mesh" in paths
+    assert {f"/meshcat/regrasp/object/goal_contacts/{f}" for f in plan.fingers} <= paths
