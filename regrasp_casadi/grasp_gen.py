@@ -1,0 +1,650 @@
+"""Grasp generation: feasible four-finger precision grasps on any object, and regrasp pairs.
+
+A generated grasp G = (X, o, Θ) satisfies, checked with the *exact* mesh distance (never the smooth one):
+
+* every fingertip contact sphere touches the surface: |d_exact(tip centre) − r_tip| ≤ `SURFACE_TOL`
+  (0.1 mm);
+* no other hand–object contact: every non-tip collision sphere of the hand (palm included) keeps
+  d_exact(centre) − radius ≥ β (1 mm by default);
+* joints within their limits;
+* the grasp can hold the object: **force closure** with Coulomb friction μ (0.5), see `grasp_quality`.
+
+How (one attempt): sample an object pose in front of the palm (an orientation aligned with the object's
+oriented bounding box plus a random tilt, a random position where the fingertip workspaces reach it),
+pick one contact target per finger among sampled surface points that the finger can reach (tip
+workspace samples over the joint limits), with the three fingers on one side and the thumb opposite
+them, then solve with IPOPT
+
+    min_{q, δt, a}  Σ_r ||R(a)ᵀ(FK_r(q) − t) − (x_r + r_tip n_r)||² / s² + w_q ||q − q_ref||²
+                    + w_t ||δt||² / s² + w_a ||a||²
+    s.t.  sd(R(a)ᵀ(FK_r(q) − t)) + δ_r = r_tip                       (each fingertip r)
+          sd(R(a)ᵀ(c_k(q) − t)) + δ_k − ρ_k ≥ β + margin             (each non-tip sphere k)
+          q_lower ≤ q ≤ q_upper
+
+with t = t₀ + δt, R(a) = R₀·Cay(a) (Cayley map), sd the smooth signed distance of `ObjectModel` and
+δ = d_exact − sd at the previous solution (a local correction, re-solved until the exact distances hold).
+The NLP is built once per (hand, object, β) and re-solved from different seeds. Same seed → same grasps.
+
+    >>> grasps = generate_grasps(Hand.allegro_right(), ObjectModel.box((0.06, 0.06, 0.12)), n=3, seed=0)
+    >>> pairs = generate_regrasp_pairs(hand, obj, n_pairs=2, seed=0)
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import ConvexHull, QhullError, cKDTree
+
+from regrasp_casadi.errors import GraspError
+from regrasp_casadi.geometry import ObjectModel
+from regrasp_casadi.grasp import Grasp
+from regrasp_casadi.hand import Hand
+from regrasp_casadi.transforms import exp_so3, inv_T, make_T, transform_points
+
+__all__ = [
+    "SURFACE_TOL",
+    "force_closure_quality",
+    "grasp_quality",
+    "generate_grasps",
+    "generate_regrasp_pairs",
+]
+
+log = logging.getLogger(__name__)
+
+SURFACE_TOL = 1e-4
+"""Allowed |exact distance of a tip centre − tip radius| of a generated grasp, m (0.1 mm)."""
+_FRICTION_EDGES = 8
+_N_WORKSPACE = 20000  # joint samples for the fingertip workspaces
+_N_SURFACE = 3000  # surface samples for contact targets
+_REACH_TOL = 0.006  # a target is reachable if a workspace sample lies within this distance, m
+_TIP_SPACING = 0.03  # minimum distance between two fingertip targets, m
+_MARGIN = 5e-4  # extra clearance demanded of the smooth distance of non-tip spheres, m
+_SCALE = 0.01  # length scale of the objective, m
+_MIN_QUALITY = 1e-3  # force-closure margin a generated grasp must exceed
+_CORRECTION_ROUNDS = 5
+_TAU = 2e-3  # smoothing temperature of the NLP's distance, m (the exact-minus-smooth offset removes its bias)
+
+
+# ------------------------------------------------------------------------------------ force closure
+def force_closure_quality(
+    contacts: NDArray[np.float64],
+    normals: NDArray[np.float64],
+    mu: float = 0.5,
+    center: NDArray[np.float64] | None = None,
+    length: float | None = None,
+    n_edges: int = _FRICTION_EDGES,
+) -> float:
+    """Ferrari–Canny ε of frictional point contacts (linearised cones); > 0 ⇔ force closure.
+
+    Each contact i pushes along the inward normal −n_i within a Coulomb cone of half-angle atan μ,
+    linearised by `n_edges` edge forces f_ij = −n_i + μ(cos φ_j t1_i + sin φ_j t2_i). Their wrenches
+    w_ij = [f_ij; (c_i − center) × f_ij / L] are scaled by the characteristic length L so forces and
+    torques are comparable. The grasp is in force closure iff the origin lies strictly inside the
+    convex hull of the w_ij (their positive span is R⁶). ε is the signed distance from the origin to
+    the hull boundary: the radius of the largest wrench ball the grasp resists with unit total normal
+    force (> 0 inside, ≤ 0 outside; 0 when the wrenches span less than 6 dimensions).
+
+    Args:
+        contacts: (m, 3) contact points, object frame, m.
+        normals: (m, 3) outward unit surface normals at the contacts, object frame.
+        mu: friction coefficient.
+        center: (3,) torque reference point, object frame, m (default: mean of the contacts).
+        length: characteristic length L, m (default: max distance of a contact from `center`).
+        n_edges: friction-cone edges.
+
+    Returns:
+        ε (dimensionless with L-scaled torques).
+    """
+    c = np.asarray(contacts, float).reshape(-1, 3)
+    n = np.asarray(normals, float).reshape(-1, 3)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    center = c.mean(axis=0) if center is None else np.asarray(center, float)
+    if length is None:
+        length = float(np.max(np.linalg.norm(c - center, axis=1)))
+    length = max(float(length), 1e-9)
+    phi = 2.0 * np.pi * np.arange(n_edges) / n_edges
+    wrenches = []
+    for ci, ni in zip(c, n, strict=True):
+        a = np.array([1.0, 0.0, 0.0]) if abs(ni[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        t1 = np.cross(ni, a)
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(ni, t1)
+        for ph in phi:
+            f = -ni + mu * (np.cos(ph) * t1 + np.sin(ph) * t2)
+            wrenches.append(np.concatenate([f, np.cross(ci - center, f) / length]))
+    W = np.array(wrenches)
+    if np.linalg.matrix_rank(W - W.mean(axis=0), tol=1e-9) < 6:
+        return 0.0
+    try:
+        hull = ConvexHull(W)
+    except QhullError:
+        return 0.0
+    return float(-np.max(hull.equations[:, -1]))
+
+
+def grasp_quality(grasp: Grasp, mu: float = 0.5) -> float:
+    """Force-closure margin ε of a grasp (see `force_closure_quality`); > 0 means force closure.
+
+    Normals: the direction from each contact to its fingertip sphere centre when the grasp has joints
+    (the contact normal of a sphere tip), else the outward normal of the closest mesh face. Torques are
+    taken about the object's centre of mass and scaled by L = the radius of the object's bounding
+    sphere about that point (its largest vertex distance).
+
+    Args:
+        grasp: the grasp.
+        mu: Coulomb friction coefficient.
+    """
+    c = np.asarray(grasp.contacts_object, float)
+    normals = None
+    if grasp.q is not None:
+        tips = np.asarray(grasp.tip_centers_object, float)
+        d = tips - c
+        norm = np.linalg.norm(d, axis=1, keepdims=True)
+        if np.all(norm > 1e-6):
+            normals = d / norm
+    if normals is None:
+        normals = np.asarray(grasp.obj.surface_normals(c), float)
+    com = np.asarray(grasp.obj.mesh.center_mass, float)
+    length = float(np.max(np.linalg.norm(np.asarray(grasp.obj.mesh.vertices) - com, axis=1)))
+    return force_closure_quality(c, normals, mu, com, length)
+
+
+# ------------------------------------------------------------------------------------------- NLP
+def _cayley(a):
+    """Rotation (3,3) of Cayley parameters a (3,): I + 2(A + A²)/(1 + aᵀa), A = [a]×; angle 2·atan|a|."""
+    A = ca.skew(a)
+    return ca.MX.eye(3) + 2.0 * (A + ca.mtimes(A, A)) / (1.0 + ca.dot(a, a))
+
+
+class _GraspNLP:
+    """The grasp-synthesis NLP of the module docstring, built once per (hand, object, β)."""
+
+    def __init__(self, hand: Hand, obj: ObjectModel, beta: float):
+        self.hand, self.obj, self.beta = hand, obj, float(beta)
+        n, m = hand.n_joints, len(hand.fingers)
+        self.checked = checked_sphere_indices(hand, beta)
+        self.radii = np.asarray(hand.sphere_radii(None, include_tip=False), float)[self.checked]
+        k = len(self.radii)
+        self.n, self.m, self.k = n, m, k
+        # decision variables
+        q = ca.MX.sym("q", n)
+        dt = ca.MX.sym("dt", 3)
+        a = ca.MX.sym("a", 3)
+        x = ca.vertcat(q, dt, a)
+        # parameters
+        R0 = ca.MX.sym("R0", 3, 3)
+        t0 = ca.MX.sym("t0", 3)
+        targets = ca.MX.sym("targets", 3, m)  # tip-centre targets, object frame
+        delta_tip = ca.MX.sym("delta_tip", m)
+        delta_sph = ca.MX.sym("delta_sph", k)
+        q_ref = ca.MX.sym("q_ref", n)
+        weights = ca.MX.sym("weights", 4)  # target, joints, translation, rotation
+        p = ca.vertcat(ca.vec(R0), t0, ca.vec(targets), delta_tip, delta_sph, q_ref, weights)
+        R = ca.mtimes(R0, _cayley(a))
+        t = t0 + dt
+        tips_palm = hand.tip_positions_function()(q)
+        tips_obj = ca.mtimes(R.T, tips_palm - ca.repmat(t, 1, m))
+        sph_palm = hand.sphere_centers_function(None, include_tip=False)(q)[:, self.checked.tolist()]
+        sph_obj = ca.mtimes(R.T, sph_palm - ca.repmat(t, 1, k))
+        sd_tip = obj.signed_distance_map_function(m, _TAU)(tips_obj)
+        sd_sph = obj.signed_distance_map_function(k, _TAU)(sph_obj)
+        # objective
+        f = (weights[0] * ca.sumsqr(tips_obj - targets) / _SCALE**2
+             + weights[1] * ca.sumsqr(q - q_ref)
+             + weights[2] * ca.sumsqr(dt) / _SCALE**2
+             + weights[3] * ca.sumsqr(a))
+        # constraints
+        g_tip = sd_tip.T + delta_tip - hand.tip_radius
+        g_sph = sd_sph.T + delta_sph - ca.DM(self.radii)
+        g = ca.vertcat(g_tip, g_sph)
+        # bounds
+        self.lbg = np.concatenate([np.zeros(m), np.full(k, self.beta + _MARGIN)])
+        self.ubg = np.concatenate([np.zeros(m), np.full(k, np.inf)])
+        self.lbx = np.concatenate([hand.q_lower, np.full(3, -0.05), np.full(3, -0.5)])
+        self.ubx = np.concatenate([hand.q_upper, np.full(3, 0.05), np.full(3, 0.5)])
+        # solver
+        opts = {
+            "print_time": False,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.max_iter": 400,
+            "ipopt.tol": 1e-10,
+            "ipopt.constr_viol_tol": 1e-9,
+            "ipopt.bound_relax_factor": 0.0,
+            "ipopt.mu_strategy": "adaptive",
+        }
+        self.solver = ca.nlpsol("grasp_synthesis", "ipopt", {"x": x, "p": p, "f": f, "g": g}, opts)
+        self.eval_points = ca.Function("grasp_points", [x, p], [tips_obj, sph_obj, sd_tip, sd_sph])
+
+    def pack(self, R0, t0, targets, delta_tip, delta_sph, q_ref, weights) -> NDArray[np.float64]:
+        return np.concatenate([np.asarray(R0).ravel(order="F"), t0, np.asarray(targets).T.ravel(order="F"),
+                               delta_tip, delta_sph, q_ref, weights])
+
+    def pose(self, x, R0, t0) -> NDArray[np.float64]:
+        a = x[self.n + 3:]
+        A = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+        C = np.eye(3) + 2.0 * (A + A @ A) / (1.0 + a @ a)
+        return make_T(R0 @ C, t0 + x[self.n:self.n + 3])
+
+    def solve(self, x0, p) -> tuple[NDArray[np.float64], str]:
+        sol = self.solver(x0=x0, p=p, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
+        try:
+            status = str(self.solver.stats()["return_status"])
+        except RuntimeError:  # stats() can raise after some failed solves (CasADi 3.8.2)
+            status = "unknown"
+        return np.asarray(sol["x"]).ravel(), status
+
+
+_STATS: collections.Counter = collections.Counter()
+"""Outcome counts of generation attempts in this process (diagnostics)."""
+
+_NLP_CACHE: dict[tuple[int, int, float], _GraspNLP] = {}
+
+
+def _grasp_nlp(hand: Hand, obj: ObjectModel, beta: float) -> _GraspNLP:
+    key = (id(hand), id(obj), float(beta))
+    nlp = _NLP_CACHE.get(key)
+    if nlp is None or nlp.hand is not hand or nlp.obj is not obj:
+        if len(_NLP_CACHE) >= 8:
+            _NLP_CACHE.pop(next(iter(_NLP_CACHE)))
+        nlp = _GraspNLP(hand, obj, beta)
+        _NLP_CACHE[key] = nlp
+    return nlp
+
+
+# ------------------------------------------------------------------------------ sampling helpers
+@dataclass
+class _Workspace:
+    """Joint samples over the limits and, per finger, tip centres (palm frame) with a KD-tree."""
+
+    Q: NDArray[np.float64]  # (N, n)
+    tips: dict[str, NDArray[np.float64]]  # finger -> (N, 3)
+    trees: dict[str, cKDTree]
+
+
+_WORKSPACES: dict[int, tuple[Hand, _Workspace]] = {}
+
+
+def _workspace(hand: Hand) -> _Workspace:
+    hit = _WORKSPACES.get(id(hand))
+    if hit is not None and hit[0] is hand:
+        return hit[1]
+    rng = np.random.default_rng(12345)
+    Q = rng.uniform(hand.q_lower, hand.q_upper, size=(_N_WORKSPACE, hand.n_joints))
+    m = len(hand.fingers)
+    out = np.asarray(hand.tip_positions_function().map(_N_WORKSPACE)(Q.T))  # (3, N*m)
+    T = out.reshape(3, _N_WORKSPACE, m)
+    tips = {f: np.ascontiguousarray(T[:, :, i].T) for i, f in enumerate(hand.fingers)}
+    ws = _Workspace(Q, tips, {f: cKDTree(v) for f, v in tips.items()})
+    _WORKSPACES[id(hand)] = (hand, ws)
+    return ws
+
+
+def _random_rotation(rng: np.random.Generator) -> NDArray[np.float64]:
+    qv = rng.normal(size=4)
+    w, x, y, z = qv / np.linalg.norm(qv)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def _signed_permutations() -> list[NDArray[np.float64]]:
+    import itertools
+
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            P = np.zeros((3, 3))
+            P[np.arange(3), perm] = signs
+            if np.linalg.det(P) > 0:
+                out.append(P)
+    return out
+
+
+_PERMS = _signed_permutations()
+
+
+@dataclass
+class _ObjectData:
+    points: NDArray[np.float64]  # (s, 3) object frame
+    normals: NDArray[np.float64]
+    com: NDArray[np.float64]
+    R_obb: NDArray[np.float64]  # object <- OBB axes
+    palm_centers: NDArray[np.float64]  # (p, 3) palm-fixed sphere centres, palm frame
+    palm_radii: NDArray[np.float64]
+
+
+_OBJECT_DATA: dict[tuple[int, int], tuple[ObjectModel, _ObjectData]] = {}
+
+
+def _object_data(hand: Hand, obj: ObjectModel) -> _ObjectData:
+    hit = _OBJECT_DATA.get((id(hand), id(obj)))
+    if hit is not None and hit[0] is obj:
+        return hit[1]
+    pts, nrm = obj.sample_surface(_N_SURFACE, seed=0)
+    obb = obj.mesh.bounding_box_oriented.primitive.transform
+    fixed = [i for i, s in enumerate(hand.spheres) if s.finger is None and not s.is_tip]
+    centers = np.array([hand.spheres[i].center_link for i in fixed]).reshape(-1, 3)
+    radii = np.array([hand.spheres[i].radius for i in fixed])
+    data = _ObjectData(np.asarray(pts), np.asarray(nrm), np.asarray(obj.mesh.center_mass, float),
+                       np.asarray(obb)[:3, :3], centers, radii)
+    _OBJECT_DATA[(id(hand), id(obj))] = (obj, data)
+    return data
+
+
+def _sample_pose(hand, obj, data, ws, rng, guess) -> NDArray[np.float64]:
+    """Object pose in the palm frame: OBB-aligned orientation with a tilt, centre in the grasp region."""
+    if guess is not None:
+        T = np.asarray(guess, float)
+        R = T[:3, :3] @ exp_so3(rng.normal(scale=0.12, size=3))
+        t = T[:3, 3] + rng.normal(scale=0.008, size=3)
+        return make_T(R, t)
+    if rng.random() < 0.75:
+        R = _PERMS[rng.integers(len(_PERMS))] @ data.R_obb.T
+        R = exp_so3(rng.normal(scale=0.25, size=3)) @ R
+    else:
+        R = _random_rotation(rng)
+    # grasp region in front of the palm: between the thumb and the fingers
+    c = np.array([rng.uniform(0.06, 0.12), rng.uniform(-0.02, 0.05), rng.uniform(0.0, 0.07)])
+    t = c - R @ data.com
+    T = make_T(R, t)
+    # push away from the palm until its fixed spheres clear the object by 5 mm
+    for _ in range(20):
+        d = obj.exact_signed_distance(transform_points(inv_T(T), data.palm_centers)) - data.palm_radii
+        if np.min(d) >= 0.005:
+            break
+        T[0, 3] += 0.005 - float(np.min(d)) + 1e-3
+    return T
+
+
+def _pick_targets(hand, data, ws, T, rng, avoid, min_mean_distance, tries: int = 8):
+    for _ in range(tries):
+        idx = _pick_targets_once(hand, data, ws, T, rng, avoid, min_mean_distance)
+        if idx is not None:
+            return idx
+    return None
+
+
+def _pick_targets_once(hand, data, ws, T, rng, avoid, min_mean_distance):
+    """Contact targets (surface point, normal) per finger, object frame; None if none fit.
+
+    The non-thumb fingers get reachable targets ≥ `_TIP_SPACING` apart; the thumb gets a reachable target
+    whose inward line of action passes near the fingers' centroid and whose normal opposes theirs.
+    """
+    fingers = list(hand.fingers)
+    thumb = fingers[-1]
+    r = hand.tip_radius
+    P = transform_points(T, data.points)
+    N = data.normals @ T[:3, :3].T
+    goals = P + r * N
+    reach = {}
+    for f in fingers:
+        dist, _ = ws.trees[f].query(goals, k=1)
+        ok = dist <= _REACH_TOL
+        if avoid is not None:
+            dd = np.linalg.norm(data.points - avoid[fingers.index(f)], axis=1)
+            ok &= dd >= min_mean_distance
+        reach[f] = np.nonzero(ok)[0]
+        if len(reach[f]) == 0:
+            return None
+    chosen: dict[str, int] = {}
+    for f in fingers[:-1]:
+        cand = reach[f]
+        for i in chosen.values():
+            cand = cand[np.linalg.norm(goals[cand] - goals[i], axis=1) >= _TIP_SPACING]
+        if len(chosen):
+            n_mean = np.mean([N[i] for i in chosen.values()], axis=0)
+            cand = cand[N[cand] @ n_mean >= 0.3]
+        if len(cand) == 0:
+            return None
+        chosen[f] = int(rng.choice(cand))
+    fi = list(chosen.values())
+    centroid = P[fi].mean(axis=0)
+    n_fingers = N[fi].mean(axis=0)
+    n_fingers /= max(np.linalg.norm(n_fingers), 1e-9)
+    cand = reach[thumb]
+    gap = np.min(np.linalg.norm(goals[cand][:, None] - goals[fi][None], axis=2), axis=1)
+    cand = cand[gap >= _TIP_SPACING]
+    cand = cand[N[cand] @ n_fingers <= -0.5]
+    if len(cand) == 0:
+        return None
+    v = centroid - P[cand]
+    line_dist = np.linalg.norm(v - np.sum(v * -N[cand], axis=1, keepdims=True) * -N[cand], axis=1)
+    best = cand[np.argsort(line_dist)[: max(3, len(cand) // 10)]]
+    chosen[thumb] = int(rng.choice(best))
+    idx = np.array([chosen[f] for f in fingers])
+    return idx
+
+
+def _initial_q(hand, ws, goals_palm, rng) -> NDArray[np.float64]:
+    """Joint guess: each finger from a workspace sample near its target (random among the 8 nearest)."""
+    q = 0.5 * (hand.q_lower + hand.q_upper)
+    for i, f in enumerate(hand.fingers):
+        _, j = ws.trees[f].query(goals_palm[i], k=8)
+        pick = int(np.atleast_1d(j)[rng.integers(len(np.atleast_1d(j)))])
+        idx = np.asarray(hand.finger_joints[f])
+        q[idx] = ws.Q[pick, idx]
+    return q
+
+
+# --------------------------------------------------------------------------------------- attempt
+def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance) -> Grasp | None:
+    T0 = _sample_pose(hand, obj, data, ws, rng, guess)
+    idx = _pick_targets(hand, data, ws, T0, rng, avoid, min_mean_distance)
+    if idx is None:
+        _STATS["no_targets"] += 1
+        return None
+    r = hand.tip_radius
+    targets_obj = data.points[idx] + r * data.normals[idx]
+    q0 = _initial_q(hand, ws, transform_points(T0, targets_obj), rng)
+    R0, t0 = T0[:3, :3], T0[:3, 3]
+    m, k = nlp.m, nlp.k
+    delta_tip, delta_sph = np.zeros(m), np.zeros(k)
+    weights = np.array([1.0, 0.1, 1.0, 10.0])
+    x = np.concatenate([q0, np.zeros(6)])
+    for rnd in range(_CORRECTION_ROUNDS):
+        p = nlp.pack(R0, t0, targets_obj, delta_tip, delta_sph, q0, weights)
+        x, status = nlp.solve(x, p)
+        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+            log.debug("grasp NLP round %d: %s", rnd, status)
+            _STATS["nlp_" + status] += 1
+            return None
+        tips_obj, sph_obj, sd_tip, sd_sph = (np.asarray(v) for v in nlp.eval_points(x, p))
+        ex_tip = obj.exact_signed_distance(tips_obj.T)
+        ex_sph = obj.exact_signed_distance(sph_obj.T)
+        tip_ok = np.all(np.abs(ex_tip - r) <= 0.5 * SURFACE_TOL)
+        sph_ok = np.all(ex_sph - nlp.radii >= nlp.beta)
+        if tip_ok and sph_ok:
+            break
+        delta_tip = ex_tip - sd_tip.ravel()
+        delta_sph = np.minimum(delta_sph, np.minimum(0.0, ex_sph - sd_sph.ravel()))
+    else:
+        _STATS["not_exact"] += 1
+        return None
+    q = np.clip(x[: nlp.n], hand.q_lower, hand.q_upper)
+    T = nlp.pose(x, R0, t0)
+    try:
+        grasp = Grasp.from_joints(hand, obj, q, T, tol=SURFACE_TOL)
+    except GraspError as exc:
+        log.debug("rejected: %s", exc)
+        return None
+    if not _non_tip_clear(grasp, nlp.beta):
+        _STATS["contact"] += 1
+        return None
+    quality = grasp_quality(grasp, mu)
+    if quality <= _MIN_QUALITY:
+        log.debug("rejected: force-closure margin %.4g", quality)
+        _STATS["force_closure"] += 1
+        return None
+    _STATS["ok"] += 1
+    return grasp
+
+
+def _non_tip_clear(grasp: Grasp, beta: float) -> bool:
+    hand = grasp.hand
+    idx = checked_sphere_indices(hand, beta)
+    c_palm = np.asarray(hand.sphere_centers(grasp.q, None, include_tip=False))[idx]
+    d = grasp.obj.exact_signed_distance(transform_points(inv_T(grasp.T_palm_object), c_palm))
+    return bool(np.all(d - hand.sphere_radii(None, include_tip=False)[idx] >= beta))
+
+
+def unavoidable_spheres(hand: Hand, beta: float = 0.001) -> list[str]:
+    """Labels of non-tip spheres that touch the object whenever their finger's tip sphere does.
+
+    A sphere (centre c, radius ρ) rigidly attached to the body of a tip sphere (centre c_t, radius r)
+    stays at least β from every object the tip touches only if some direction u has
+    u·(c − c_t) + ρ + β ≤ r, i.e. iff |c − c_t| ≥ ρ + β − r. Spheres that fail this (e.g. a distal-link
+    sphere covering the rubber tip's cylinder that reaches past the contact sphere) make every fingertip
+    contact a non-tip contact too; they are reported and left out of the clearance checks.
+
+    Args:
+        hand: the hand.
+        beta: clearance, m.
+    """
+    lo, hi = np.asarray(hand.q_lower, float), np.asarray(hand.q_upper, float)
+    dists = []
+    for q in (0.5 * (lo + hi), 0.7 * lo + 0.3 * hi):
+        tips = dict(zip(hand.fingers, np.asarray(hand.tip_positions(q)).reshape(-1, 3), strict=True))
+        centres = np.asarray(hand.sphere_centers(q, None, include_tip=False)).reshape(-1, 3)
+        non_tip = [s for s in hand.spheres if not s.is_tip]
+        far = 1e9 * (1 + len(dists))  # palm spheres: never on a tip's body
+        dists.append(np.array([np.linalg.norm(c - tips[s.finger]) if s.finger in tips else far
+                               for s, c in zip(non_tip, centres, strict=True)]))
+    radii = hand.sphere_radii(None, include_tip=False)
+    rigid = np.abs(dists[0] - dists[1]) < 1e-9
+    bad = rigid & (dists[0] < radii + beta - hand.tip_radius)
+    return [lab for lab, b in zip(hand.sphere_labels(None, include_tip=False), bad, strict=True) if b]
+
+
+_CHECKED: dict[tuple[int, float], tuple[Hand, NDArray[np.int64]]] = {}
+
+
+def checked_sphere_indices(hand: Hand, beta: float = 0.001) -> NDArray[np.int64]:
+    """Indices into the non-tip spheres (`hand.sphere_labels()` order) whose clearance is enforced:
+    all but `unavoidable_spheres` (cached per hand)."""
+    hit = _CHECKED.get((id(hand), float(beta)))
+    if hit is not None and hit[0] is hand:
+        return hit[1]
+    skip = set(unavoidable_spheres(hand, beta))
+    if skip:
+        log.warning("%s: non-tip spheres %s reach past their fingertip contact sphere; no grasp can keep "
+                    "them %.1f mm clear, so they are not checked", hand.name, sorted(skip), beta * 1e3)
+    idx = np.array([i for i, lab in enumerate(hand.sphere_labels(None, include_tip=False))
+                    if lab not in skip], dtype=np.int64)
+    _CHECKED[(id(hand), float(beta))] = (hand, idx)
+    return idx
+
+
+# ------------------------------------------------------------------------------------ public API
+def generate_grasps(
+    hand: Hand,
+    obj: ObjectModel,
+    n: int = 1,
+    seed: int = 0,
+    *,
+    mu: float = 0.5,
+    beta: float = 0.001,
+    T_palm_object_guess: NDArray[np.float64] | None = None,
+    max_attempts: int | None = None,
+) -> list[Grasp]:
+    """Feasible four-finger precision grasps on `obj` (see the module docstring for the method).
+
+    Every returned grasp satisfies, with the exact mesh distance: each tip sphere on the surface within
+    `SURFACE_TOL` (0.1 mm); every non-tip collision sphere (palm included) at least `beta` from the object;
+    joints within limits; force closure with friction `mu` — the origin strictly inside the convex hull
+    of the contact wrenches of 8-edge linearised friction cones, with a margin ε > 1e-3 (torques about the
+    centre of mass scaled by the object's bounding radius; see `grasp_quality`).
+
+    Args:
+        hand: the hand.
+        obj: the object.
+        n: number of grasps.
+        seed: random seed; the same seed gives the same grasps.
+        mu: Coulomb friction coefficient of the force-closure test.
+        beta: clearance of the non-tip spheres, m.
+        T_palm_object_guess: (4, 4) object pose in the palm frame to perturb (random poses if None).
+        max_attempts: attempts before giving up (default 60·n).
+
+    Returns:
+        `n` grasps (with joints).
+
+    Raises:
+        GraspError: if fewer than `n` grasps were found within `max_attempts`.
+    """
+    return _generate(hand, obj, n, seed, mu, beta, T_palm_object_guess, max_attempts, None, 0.0)
+
+
+def _generate(hand, obj, n, seed, mu, beta, guess, max_attempts, avoid, min_mean_distance) -> list[Grasp]:
+    max_attempts = 60 * n if max_attempts is None else int(max_attempts)
+    nlp = _grasp_nlp(hand, obj, beta)
+    data = _object_data(hand, obj)
+    ws = _workspace(hand)
+    out: list[Grasp] = []
+    for attempt in range(max_attempts):
+        g = _attempt(hand, obj, nlp, data, ws, np.random.default_rng([seed, attempt]), mu, guess, avoid,
+                     min_mean_distance)
+        if g is not None and avoid is not None:
+            if np.mean(np.linalg.norm(g.contacts_object - avoid, axis=1)) < min_mean_distance:
+                g = None
+        if g is not None:
+            out.append(g)
+            if len(out) == n:
+                return out
+    raise GraspError(f"found {len(out)} of {n} grasps on {obj.name!r} in {max_attempts} attempts "
+                     f"(seed {seed})")
+
+
+def generate_regrasp_pairs(
+    hand: Hand,
+    obj: ObjectModel,
+    n_pairs: int,
+    seed: int = 0,
+    min_mean_distance: float = 0.03,
+    *,
+    mu: float = 0.5,
+    beta: float = 0.001,
+    max_attempts: int = 40,
+) -> list[tuple[Grasp, Grasp]]:
+    """Pairs (initial grasp, desired grasp) for regrasp planning.
+
+    Both grasps satisfy every property of `generate_grasps` at their own object pose. The desired grasp's
+    pose is a perturbation of the initial one (≈ 7° and 8 mm rms) and its contacts are, on average over
+    the fingers, at least `min_mean_distance` from the initial contacts (object frame), so reaching it
+    needs finger gaits and reposing.
+
+    Args:
+        hand: the hand.
+        obj: the object.
+        n_pairs: number of pairs.
+        seed: random seed (same seed, same pairs).
+        min_mean_distance: minimum mean contact distance between the two grasps, m.
+        mu: friction coefficient of the force-closure test.
+        beta: non-tip clearance, m.
+        max_attempts: attempts per desired grasp before drawing a new initial grasp.
+
+    Returns:
+        list of (grasp0, grasp_goal); both carry joints.
+
+    Raises:
+        GraspError: if the pairs could not be found.
+    """
+    pairs: list[tuple[Grasp, Grasp]] = []
+    for i in range(20 * n_pairs):
+        init = _generate(hand, obj, 1, seed * 100003 + i, mu, beta, None, 60, None, 0.0)[0]
+        try:
+            goal = _generate(hand, obj, 1, seed * 100003 + 50000 + i, mu, beta, init.T_palm_object,
+                             max_attempts, init.contacts_object, min_mean_distance)[0]
+        except GraspError:
+            log.debug("pair %d: no desired grasp for this initial grasp", i)
+            continue
+        pairs.append((init, goal))
+        if len(pairs) == n_pairs:
+            return pairs
+    raise GraspError(f"found {len(pairs)} of {n_pairs} regrasp pairs on {obj.name!r} (seed {seed})")
