@@ -175,3 +175,73 @@ def test_installed_console_script_help():
     proc = subprocess.run([exe, "--help"], capture_output=True, text=True, timeout=60, check=False)
     assert proc.returncode == 0, proc.stderr
     assert "exit codes" in proc.stdout and "demo" in proc.stdout
+
+
+PROBLEM = Path(__file__).resolve().parents[1] / "problems" / "box_rotate.yaml"
+
+
+def _plan_from_problem(problem, status: str):
+    from regrasp_casadi.grasp import Plan, PlanStep
+
+    g0 = problem.grasp0
+    m = len(problem.hand.fingers)
+    err = np.linalg.norm(g0.contacts_object - problem.grasp_goal.contacts_object, axis=1)
+    step = PlanStep(kind="initial", finger=None, q=g0.q, T_palm_object=g0.T_palm_object,
+                    contacts_object=g0.contacts_object, contact_error=err, solver_status="", solve_time=0.0)
+    return Plan(steps=(step,), goal_contacts_object=problem.grasp_goal.contacts_object,
+                goal_T_palm_object=problem.grasp_goal.T_palm_object, fingers=problem.hand.fingers,
+                hand_spec=problem.hand.spec(), object_spec=problem.obj.spec, method="svd", status=status,
+                status_detail="", iterations=0, iteration_errors=np.full(1, err.mean()),
+                timing={"total": 0.0}, options={"max_iters": m})
+
+
+@pytest.mark.parametrize(("status", "verified", "code"), [
+    ("converged", True, 0), ("converged", False, 1), ("iteration_limit", True, 1),
+    ("solver_failure", False, 1),
+])
+def test_plan_exit_code_follows_status_and_verify(status, verified, code, tmp_path, capsys, monkeypatch):
+    if not PROBLEM.is_file():
+        pytest.skip(f"{PROBLEM} not present")
+    import regrasp_casadi.planner as planner_mod
+    import regrasp_casadi.verify as verify_mod
+
+    calls = []
+
+    def fake_plan(grasp0, grasp_goal, progress=None, **options):
+        calls.append(options)
+        from regrasp_casadi.problem import RegraspProblem
+
+        if progress is not None:
+            progress(1, options.get("max_iters", 50), 0.004)
+        return _plan_from_problem(RegraspProblem.load(PROBLEM), status)
+
+    def fake_verify(plan, hand=None, obj=None, **kw):
+        return verify_mod.VerifyReport(ok=verified, violations=(), metrics={"n_steps": len(plan.steps)})
+
+    monkeypatch.setattr(planner_mod, "plan_regrasp", fake_plan)
+    monkeypatch.setattr(verify_mod, "verify", fake_verify)
+    out = tmp_path / "plan.json"
+    argv = ["plan", str(PROBLEM), "--method", "sd", "--max-iters", "7", "--out", str(out),
+            "--html", str(tmp_path / "r.html")]
+    assert cli.main(argv) == code
+    assert calls == [{"method": "sd", "max_iters": 7}]
+    from regrasp_casadi.grasp import Plan
+
+    assert Plan.load(out).status == status
+    assert (tmp_path / "r.html").stat().st_size > 0
+    text = capsys.readouterr().out
+    assert status in text and ("verify: OK" in text) == verified
+
+
+@pytest.mark.slow
+def test_demo_end_to_end(tmp_path, capsys):
+    """The real planner on the built-in problem: files written, exit code consistent with the plan."""
+    from regrasp_casadi.grasp import Plan
+    from regrasp_casadi.verify import verify
+
+    code = cli.main(["demo", "--out-dir", str(tmp_path), "--no-progress"])
+    assert code in (0, 1)
+    plan = Plan.load(tmp_path / "plan.json")
+    assert (code == 0) == (plan.status == "converged" and verify(plan).ok)
+    assert "MeshCat.Viewer" in (tmp_path / "replay.html").read_text(encoding="utf-8")
+    assert 3 <= len(capsys.readouterr().out.strip().splitlines()) <= 10
