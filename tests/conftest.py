@@ -23,3 +23,19 @@ def reference_dir() -> Path:
     if not REFERENCE_DIR.is_dir():
         pytest.skip(f"reference data not present: {REFERENCE_DIR}")
     return REFERENCE_DIR
+
+
+@pytest.fixture(scope="session")
+def box_object():
+    """Generated box, 0.05 × 0.09 × 0.175 m (YCB sugar-box size), one convex piece of 6 planes."""
+    from regrasp_casadi.geometry import ObjectModel
+
+    return ObjectModel.box((0.05, 0.09, 0.175))
+
+
+@pytest.fixture(scope="session")
+def cylinder_object():
+    """Generated cylinder about z, radius 0.035 m, height 0.2 m, 32 sides (34 planes)."""
+    from regrasp_casadi.geometry import ObjectModel
+
+    return ObjectModel.cylinder(0.035, 0.2)

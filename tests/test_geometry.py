@@ -20,16 +20,6 @@ TAU = geometry.DEFAULT_TAU
 
 
 @pytest.fixture(scope="module")
-def box_object():
-    return ObjectModel.box((0.05, 0.09, 0.175))
-
-
-@pytest.fixture(scope="module")
-def cylinder_object():
-    return ObjectModel.cylinder(0.035, 0.2)
-
-
-@pytest.fixture(scope="module")
 def banana_small(tmp_path_factory):
     """A low-resolution banana (coacd, a few pieces) decomposed into a private cache."""
     mp = pytest.MonkeyPatch()
