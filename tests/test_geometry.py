@@ -339,3 +339,20 @@ def test_mx_and_sx_functions_agree(banana_small):
     sx = banana_small.signed_distance_function().map(40)(pts)
     mx = banana_small.signed_distance_function(symbolic="MX").map(40)(pts)
     np.testing.assert_allclose(np.asarray(mx), np.asarray(sx), atol=1e-14)
+
+
+@pytest.mark.parametrize("suffix", ["obj", "stl", "ply", "glb"])
+def test_formats_and_repair(tmp_path, monkeypatch, suffix):
+    monkeypatch.setenv("REGRASP_CACHE_DIR", str(tmp_path))
+    box = trimesh.creation.box(extents=(0.04, 0.06, 0.08))
+    # a duplicated face and unmerged vertices: both are repaired on load
+    faces = np.concatenate([box.faces, box.faces[:1]])
+    raw = trimesh.Trimesh(box.vertices[faces].reshape(-1, 3), np.arange(3 * len(faces)).reshape(-1, 3),
+                          process=False)
+    path = tmp_path / f"box.{suffix}"
+    raw.export(path)
+    obj = ObjectModel.from_mesh(path)
+    assert len(obj.mesh.faces) == 12 and obj.mesh.is_watertight
+    assert obj.name == "box"
+    d = obj.exact_signed_distance([[0, 0, 0], [0.05, 0, 0]])
+    np.testing.assert_allclose(d, [-0.02, 0.03], atol=1e-12)
