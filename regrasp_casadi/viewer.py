@@ -469,47 +469,63 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
         node.set_transform(T_cam_label)
         node.set_property("visible", i == n_steps - 1)
 
-    def pose(frame_vis, f: Keyframe) -> None:
+    def pose(f: Keyframe) -> None:
         for link, T in f.T_palm_link.items():
-            frame_vis[_ROOT]["hand"][link].set_transform(T)
-        frame_vis[_ROOT]["object"].set_transform(f.T_palm_object)
+            root["hand"][link].set_transform(T)
+        root["object"].set_transform(f.T_palm_object)
         for r, finger in enumerate(plan.fingers):
-            T = np.eye(4)
-            T[:3, 3] = f.p_palm_contacts[r]
-            frame_vis[_ROOT]["contacts"][str(finger)].set_transform(T)
+            root["contacts"][str(finger)].set_transform(_translation(f.p_palm_contacts[r]))
 
-    pose(vis, frames[-1])   # static scene = final step
+    pose(frames[-1])   # static scene = final step
     anim = mca.Animation(default_framerate=fps)
-    for f in frames:
-        pose(anim.at_frame(vis, f.time * fps), f)
+    key_frames = [f.time * fps for f in frames]
+    for link in frames[0].T_palm_link:
+        _transform_tracks(anim, root["hand"][link].path, key_frames,
+                          np.stack([f.T_palm_link[link] for f in frames]), fps)
+    _transform_tracks(anim, root["object"].path, key_frames, np.stack([f.T_palm_object for f in frames]), fps)
+    for r, finger in enumerate(plan.fingers):
+        Ts = np.stack([_translation(f.p_palm_contacts[r]) for f in frames])
+        _transform_tracks(anim, root["contacts"][str(finger)].path, key_frames, Ts, fps)
     t_steps = [f.time for f in frames if f.alpha >= 1.0]   # the keyframes exactly at the steps
     for i in range(n_steps):   # boolean tracks are discrete: label i is on from step i to step i+1
         keys = {0.0: False, t_steps[i]: True}
         if i + 1 < n_steps:
             keys[t_steps[i + 1]] = False
-        for t, visible in keys.items():
-            anim.at_frame(vis, t * fps)[_LABELS][f"step_{i}"].set_property("visible", "boolean", visible)
-    _compact(anim)
+        clip = anim.clips.setdefault(vis[_LABELS][f"step_{i}"].path, mca.AnimationClip(fps=fps))
+        clip.tracks["visible"] = mca.AnimationTrack(
+            "visible", "boolean", [t * fps for t in keys], list(keys.values()))
     vis.set_animation(anim, play=True, repetitions=1)
 
 
-def _compact(anim, tol: float = 1e-7) -> None:
-    """Drop interior keys of constant runs (three.js interpolates between the kept ones)."""
-    for clip in anim.clips.values():
-        for track in clip.tracks.values():
-            fr, va = track.frames, track.values
-            if len(fr) < 3:
-                continue
-            keep_f, keep_v = [fr[0]], [va[0]]
-            for j in range(1, len(fr) - 1):
-                same_prev = np.allclose(np.asarray(va[j], float), np.asarray(va[j - 1], float), atol=tol)
-                same_next = np.allclose(np.asarray(va[j], float), np.asarray(va[j + 1], float), atol=tol)
-                if not (same_prev and same_next):
-                    keep_f.append(fr[j])
-                    keep_v.append(va[j])
-            keep_f.append(fr[-1])
-            keep_v.append(va[-1])
-            track.frames, track.values = keep_f, keep_v
+def _translation(p: NDArray) -> NDArray:
+    T = np.eye(4)
+    T[:3, 3] = p
+    return T
+
+
+def _compact(frames: list[float], values: NDArray, tol: float = 1e-7) -> tuple[list[float], list]:
+    """Keys (frames, values (N, d)) without the interior keys of constant runs (three.js interpolates
+    between the kept ones)."""
+    n = len(frames)
+    keep = np.ones(n, dtype=bool)
+    if n >= 3:
+        same = np.all(np.abs(np.diff(values, axis=0)) <= tol, axis=1)   # same[j]: key j+1 == key j
+        keep[1:-1] = ~(same[:-1] & same[1:])
+    idx = np.flatnonzero(keep)
+    return [float(frames[j]) for j in idx], values[idx].tolist()
+
+
+def _transform_tracks(anim, path, frames: list[float], Ts: NDArray, fps: float) -> None:
+    """Position and quaternion (xyzw, sign-continuous) tracks of poses Ts (N, 4, 4) at `frames`."""
+    import meshcat.animation as mca
+
+    quat = Rotation.from_matrix(Ts[:, :3, :3]).as_quat()   # xyzw, as three.js wants
+    if len(quat) > 1:   # q and -q are the same rotation: keep neighbours in one hemisphere
+        flips = np.where(np.sum(quat[1:] * quat[:-1], axis=1) < 0.0, -1.0, 1.0)
+        quat[1:] *= np.cumprod(flips)[:, None]
+    clip = anim.clips.setdefault(path, mca.AnimationClip(fps=fps))
+    clip.tracks["position"] = mca.AnimationTrack("position", "vector3", *_compact(frames, Ts[:, :3, 3]))
+    clip.tracks["quaternion"] = mca.AnimationTrack("quaternion", "quaternion", *_compact(frames, quat))
 
 
 def _title(plan: Plan, obj: ObjectModel) -> str:
@@ -517,7 +533,7 @@ def _title(plan: Plan, obj: ObjectModel) -> str:
             f"{plan.status}, {plan.iterations} iterations")
 
 
-def scene_html(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, fps: float = 12,
+def scene_html(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, fps: float = 8,
                seconds_per_step: float = 0.8) -> str:
     """The self-contained HTML replay of `plan` as a string (see `write_html`)."""
     meshcat = _import_meshcat()
@@ -532,7 +548,7 @@ def scene_html(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = N
 
 
 def write_html(plan: Plan, path: str | Path, hand: Hand | None = None, obj: ObjectModel | None = None,
-               fps: float = 12, seconds_per_step: float = 0.8) -> Path:
+               fps: float = 8, seconds_per_step: float = 0.8) -> Path:
     """Write ONE self-contained HTML file (three.js/Meshcat bundle included) that replays `plan` offline.
 
     Args:
