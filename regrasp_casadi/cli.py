@@ -289,14 +289,16 @@ def build_parser() -> argparse.ArgumentParser:
     """The `regrasp` argument parser (one subparser per command)."""
     from regrasp_casadi import __version__
 
+    # --verbose is accepted before and after the command; the subcommands' copy must not reset it
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--verbose", "-v", action="store_true",
+    common.add_argument("--verbose", "-v", action="store_true", default=argparse.SUPPRESS,
                         help="INFO logging and full tracebacks on errors")
     p = argparse.ArgumentParser(
-        prog="regrasp", parents=[common], epilog=_EPILOG,
+        prog="regrasp", epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Geometric in-hand regrasp planning (Sundaralingam & Hermans, ICRA 2018) for the "
                     "Allegro hand: plan, verify and replay regrasps.")
+    p.add_argument("--verbose", "-v", action="store_true", help="INFO logging and full tracebacks on errors")
     p.add_argument("--version", action="version", version=f"regrasp {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
@@ -308,7 +310,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("problem", metavar="PROBLEM.yaml", help="regrasp problem file (YAML)")
     sp.add_argument("--method", choices=("svd", "sd"), default="svd",
                     help="in-grasp objective E_des: svd (Kabsch pose) or sd (workspace distance)")
-    sp.add_argument("--out", default="plan.json", metavar="PLAN.json", help="plan file to write")
+    sp.add_argument("--out", default="plan.json", metavar="PLAN.json",
+                    help="plan file to write (default: plan.json)")
     sp.add_argument("--html", metavar="REPLAY.html", help="also write a self-contained HTML replay")
     sp.add_argument("--view", action="store_true", help="open the live viewer after planning")
     sp.add_argument("--max-iters", type=int, metavar="N", help="planner iteration limit (default 50)")

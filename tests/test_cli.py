@@ -61,9 +61,11 @@ def test_malformed_problem_file_is_bad_input(tmp_path, capsys):
 
 
 def test_verbose_shows_the_traceback(tmp_path, capsys):
-    assert cli.main(["plan", str(tmp_path / "missing.yaml"), "--verbose"]) == cli.EXIT_BAD_INPUT
-    err = capsys.readouterr().err
-    assert "Traceback" in err and err.rstrip().splitlines()[-1].startswith("regrasp: error: ")
+    for argv in (["plan", str(tmp_path / "missing.yaml"), "--verbose"],
+                 ["--verbose", "plan", str(tmp_path / "missing.yaml")]):
+        assert cli.main(argv) == cli.EXIT_BAD_INPUT
+        err = capsys.readouterr().err
+        assert "Traceback" in err and err.rstrip().splitlines()[-1].startswith("regrasp: error: ")
 
 
 def test_bad_arguments_exit_2(capsys):
