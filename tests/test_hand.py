@@ -233,7 +233,11 @@ def test_symbolic_functions_are_cached_and_named(hand):
 @pytest.mark.reference_data
 def test_sphere_cover_encloses_vendor_meshes(hand, reference_dir):
     """Every vertex of every vendor link mesh (placed by the vendor URDF's FK) lies inside the union of the
-    link's spheres (distal link and tip link: the union of both links' spheres, tip sphere included)."""
+    link's spheres (distal link and tip link: the union of both links' spheres, tip sphere included).
+
+    Tolerance: the rubber tip's hemispherical cap IS the contact sphere (its vertices lie on it to ~1e-9 m),
+    so a vertex on the cap side of the tip sphere's centre (tip-frame z >= 0.002) counts as covered within
+    1e-6 m of the contact sphere; every other vertex must lie inside a sphere (distance <= 0)."""
     ref_dir = reference_dir / "allegro_right"
     ref = yourdfpy.URDF.load(
         str(ref_dir / "allegro_hand_right.urdf"), load_meshes=False, build_collision_scene_graph=False
@@ -267,12 +271,19 @@ def test_sphere_cover_encloses_vendor_meshes(hand, reference_dir):
             hand.tip_links[f] for f in hand.fingers
         ]
         radii = hand.sphere_radii(include_tip=True)
+        is_tip_sphere = np.arange(len(labels_links)) >= len(labels_links) - len(hand.fingers)
         for link in hand.link_names:
             m, T_link_mesh = meshes[(link, "T")]
             V = trimesh.transform_points(m.vertices, ref.get_transform(link, ref.base_link) @ T_link_mesh)
             sel = np.array([ln in groups[link] for ln in labels_links])
             assert sel.any(), link
             d = np.linalg.norm(V[:, None, :] - centres[sel][None], axis=-1) - radii[sel]
+            tip_link = link if link.endswith("_tip") else link + "_tip"
+            if tip_link in hand.link_names:  # cap vertices: within 1e-6 m of the contact sphere is covered
+                T_tip = hand.fk(q)[tip_link]
+                z_tip = (V - T_tip[:3, 3]) @ T_tip[:3, 2]  # tip-frame z
+                is_cap = z_tip >= 0.002 - 1e-9
+                d[:, is_tip_sphere[sel]] -= np.where(is_cap, 1e-6, 0.0)[:, None]
             out = float(d.min(axis=1).max())
             assert out <= 0.0, f"{link}: a vertex lies {out * 1e3:.3f} mm outside the sphere cover"
             worst = max(worst, out)

@@ -75,3 +75,43 @@ def test_allegro_joints_equal_vendor_joints(reference_dir):
         if a.type != "fixed":
             np.testing.assert_array_equal(a.axis, b.axis)
             assert (a.limit.lower, a.limit.upper) == (b.limit.lower, b.limit.upper)
+
+
+def _max_over_cone(d: np.ndarray, half_angle: float) -> float:
+    """max of u·d over unit u within half_angle of +z (closed form: |d| if d is inside the cone, else
+    |d| cos(angle between d and the cone's nearest boundary ray))."""
+    n = float(np.linalg.norm(d))
+    phi = float(np.arccos(np.clip(d[2] / n, -1.0, 1.0)))
+    return n if phi <= half_angle else n * float(np.cos(phi - half_angle))
+
+
+def test_allegro_distal_spheres_clear_every_contact_in_a_60deg_cone():
+    """For each finger, every non-tip sphere (c, ρ) rigidly attached to the tip sphere (c_t, r) keeps β = 1 mm
+    from the tangent plane of any fingertip contact whose outward normal u lies within 60° of the tip axis:
+    u·(c − c_t) ≤ r − ρ − β. Rigid attachment and tip-frame positions come from Hand FK (URDF only)."""
+    hand = Hand.allegro_right()
+    beta, half_angle = 0.001, np.deg2rad(60.0)
+    rng = np.random.default_rng(0)
+    Q = [rng.uniform(hand.q_lower, hand.q_upper) for _ in range(3)]
+    Ts = [hand.fk(q) for q in Q]
+    # dense grid of cone directions (axis, rings, boundary) as an independent check of the closed form
+    th, az = np.meshgrid(np.linspace(0.0, half_angle, 61), np.linspace(0.0, 2 * np.pi, 361))
+    U = np.stack([np.sin(th) * np.cos(az), np.sin(th) * np.sin(az), np.cos(th)], axis=-1).reshape(-1, 3)
+    for finger in hand.fingers:
+        tip = next(s for s in hand.spheres if s.is_tip and s.finger == finger)
+        rel = [np.linalg.inv(T[tip.link]) for T in Ts]
+        rigid = [
+            s for s in hand.spheres if not s.is_tip and all(
+                np.allclose(R @ T[s.link], rel[0] @ Ts[0][s.link], atol=1e-12)
+                for R, T in zip(rel, Ts, strict=True)
+            )
+        ]
+        assert len(rigid) >= 3, finger  # the distal link's spheres (incl. the one behind the cap)
+        assert {s.link for s in rigid} == {tip.link.removesuffix("_tip")}
+        for s in rigid:
+            T_tip_link = rel[0] @ Ts[0][s.link]
+            d = T_tip_link[:3, :3] @ s.center_link + T_tip_link[:3, 3] - tip.center_link
+            bound = tip.radius - s.radius - beta
+            assert _max_over_cone(d, half_angle) <= bound, (s.label, _max_over_cone(d, half_angle), bound)
+            assert float((U @ d).max()) <= _max_over_cone(d, half_angle) + 1e-12
+            assert float((U @ d).max()) >= _max_over_cone(d, half_angle) - 1e-4 * np.linalg.norm(d)
