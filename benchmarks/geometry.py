@@ -14,6 +14,21 @@ smooth − exact ≤ τ·log k_max; one distance+gradient evaluation ≤ 20 µs.
     python benchmarks/geometry.py [--n 3000] [--thresholds 0.05 0.02] [--no-ycb] [--use-cache]
 
 Writes benchmarks/results/geometry.json (with CPU, python, casadi, coacd, trimesh versions, git commit).
+
+Representative result (n = 3000, τ = 0.2 mm, 64 planes per piece; Intel Xeon, 2 shared cores, python 3.11.7,
+casadi 3.8.2, coacd 1.0.14, trimesh 5.2.0; timings are noisy on the shared machine, quiet-machine values for
+the 256-plane YCB banana: SX 26 µs, MX 10 µs per value+gradient):
+
+| object | pieces | planes | surface p99 / max mm | all-planes p99 mm | sign err >1 mm | f+grad VM µs (SX) |
+|---|---|---|---|---|---|---|
+| box / cylinder | 1 | 6 / 34 | 0.05 / 0.14, 0.13 / 0.21 | 0 | 0 | 1.4 / 4.4 |
+| sphere (64 / 320 planes) | 1 | 64 / 320 | 1.47 / 1.72, 0.29 / 0.35 | 0 | 8 / 0 | 8.9 / 49 |
+| bottle / banana (generated) | 2 / 3 | 128 / 192 | 0.33 / 0.55, 1.58 / 1.74 | 0.03 / 1.60 | 0 | 22 / 18–69 |
+| YCB, threshold 0.05 | 1–4 | 64–256 | 1.7–4.2 / 1.9–6.1 | 1.6–4.2 | 0–63 | 11–22 |
+| YCB, threshold 0.02 | 9–16 | 576–1024 | 0.43–1.3 / 0.6–1.9 | 0.51–1.29 | 0 | 55–160 |
+
+Reading: capping pieces at 64 planes costs almost nothing (all-planes hull error ≈ capped error); the
+surface error on YCB is the convex decomposition's (hulls bridge concavities), as DESIGN.md's table says.
 """
 
 from __future__ import annotations

@@ -15,6 +15,13 @@ by mesh content) and two distances:
   the mesh because trimesh 5.2's closest-point tolerance (1e-13 on length⁴) misjudges metre-scale meshes;
   the sign comes from angle-weighted pseudo-normals of the closest feature (Bærentzen & Aanæs 2005).
 
+Accuracy (benchmarks/geometry.py): on convex primitives with ≤ 64 facets the smooth distance is within
+0.14 mm of the exact one on the surface (τ's bias only). Capping each piece at `DEFAULT_MAX_PLANES` (64)
+planes changes the YCB surface error by < 0.25 mm; the error there is the decomposition's: p99 1.7–4.2 mm
+at threshold 0.05, 0.4–1.3 mm at 0.02 (9–16 pieces). Inside a non-convex object the union of pieces
+under-estimates the penetration depth (min over pieces); the planner corrects contacts with the exact
+distance.
+
     >>> obj = ObjectModel.cylinder(0.035, 0.2)
     >>> f = obj.signed_distance_function()      # p_object (3,1) -> d (1,1), m
     >>> float(f([0.05, 0, 0]))                  # ≈ 0.015
