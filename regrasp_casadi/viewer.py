@@ -18,9 +18,10 @@ meshcat nor starts a server). The scene, drawn in the palm frame:
   attached to the camera, so it stays in view), one label per step whose `visible` flag is animated;
   the HTML `<title>` names the plan (steps, method, status).
 
-Only transforms and visibility are animated; geometry is sent once. The static scene (before and after
-the animation) shows the final step. The static HTML is produced without a Meshcat server: the commands
-are recorded in-process and assembled the way Meshcat's own `static_html()` does.
+Only transforms and visibility are animated; geometry is sent once. The static HTML's static scene
+is the final step (what a page shows if it does not play the animation); the live viewer's is the
+first. The static HTML is produced without a Meshcat server: the commands are recorded in-process and
+assembled the way Meshcat's own `static_html()` does, with the animation last.
 """
 
 from __future__ import annotations
@@ -325,7 +326,10 @@ class _RecordingWindow:
                     '.then(buffer => viewer.handle_command_bytearray(new Uint8Array(buffer)));\n'
                     ).format(base64.b64encode(data).decode("utf-8"))
 
-        commands = []
+        # Unlike meshcat's server, the animation goes LAST: three.js records each animated property's
+        # value when the animation starts and afterwards writes a property only when its animated value
+        # changes, so a static value set after the start would stay on screen until then.
+        commands, animations = [], []
         for node in walk(self.tree):
             if node.object is not None:
                 commands.append(cmd(node.object))
@@ -333,7 +337,8 @@ class _RecordingWindow:
             if node.transform is not None:
                 commands.append(cmd(node.transform))
             if node.animation is not None:
-                commands.append(cmd(node.animation))
+                animations.append(cmd(node.animation))
+        commands += animations
         import meshcat
 
         js = (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text(encoding="utf-8")
@@ -402,8 +407,15 @@ def _rot_x90() -> NDArray:
     return T
 
 
-def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Keyframe], fps: float) -> None:
-    """Send geometry once, the final step as the static pose, and the animation of transforms."""
+def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Keyframe], fps: float,
+                 static_frame: int = -1) -> None:
+    """Send geometry once, `frames[static_frame]` as the static pose, and the animation of transforms.
+
+    The static pose is what a viewer shows before the animation starts and where a property is not
+    animated yet; it must equal the animation's first frame when the animation may reach the browser
+    before the static commands (meshcat's live server replays the animation first), see
+    `_RecordingWindow.get_scene`.
+    """
     import meshcat.animation as mca
     import meshcat.geometry as g
 
@@ -461,13 +473,17 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
     T_cam_label = np.eye(4)
     T_cam_label[:3, 3] = [-1.25 * half_h + size / 2, half_h - size * 0.3, -dist]
     n_steps = len(plan.steps)
+    static_step = frames[static_frame].step
+    # one font size for every label (the viewer shrinks text to its 256 px canvas): fit the longest
+    font_size = int(min(40, 256 / (0.56 * max(len(step_label(plan, i)) for i in range(n_steps)))))
     for i in range(n_steps):
         node = vis[_LABELS][f"step_{i}"]
         node.set_object(Plane(size, size),
-                        g.MeshBasicMaterial(map=TextTexture(step_label(plan, i)), transparent=True,
+                        g.MeshBasicMaterial(map=TextTexture(step_label(plan, i), font_size=font_size),
+                                            transparent=True,
                                             depthTest=False, depthWrite=False))
         node.set_transform(T_cam_label)
-        node.set_property("visible", i == n_steps - 1)
+        node.set_property("visible", i == static_step)
 
     def pose(f: Keyframe) -> None:
         for link, T in f.T_palm_link.items():
@@ -476,7 +492,7 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
         for r, finger in enumerate(plan.fingers):
             root["contacts"][str(finger)].set_transform(_translation(f.p_palm_contacts[r]))
 
-    pose(frames[-1])   # static scene = final step
+    pose(frames[static_frame])
     anim = mca.Animation(default_framerate=fps)
     key_frames = [f.time * fps for f in frames]
     for link in frames[0].T_palm_link:
@@ -585,7 +601,7 @@ def show(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, f
     frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
     with contextlib.redirect_stdout(io.StringIO()):
         vis = meshcat.Visualizer(zmq_url=zmq_url)
-    _build_scene(vis, plan, hand, obj, frames, fps)
+    _build_scene(vis, plan, hand, obj, frames, fps, static_frame=0)
     LIVE_VIEWERS.append(vis)
     return vis.url()
 

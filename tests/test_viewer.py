@@ -233,6 +233,23 @@ def test_write_html_is_one_small_self_contained_file(plan, hand, obj, tmp_path):
     assert "MeshCat.Viewer" in html and html.count("<script") >= 2
     assert "<script src=" not in html             # nothing loaded from elsewhere
     assert f"{len(plan.steps)} steps" in html.split("<title>")[1].split("</title>")[0]
+    # the animation is the last command (three.js only writes animated values when they change, so a
+    # static command after it would win), and the static scene before it is the final step
+    import base64
+    import re
+
+    import umsgpack
+
+    blobs = re.findall(r'base64,([A-Za-z0-9+/=]+)"', html)
+    cmds = [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
+    assert [c["type"] for c in cmds].index("set_animation") == len(cmds) - 1
+    (T_obj,) = [c["matrix"] for c in cmds if c["type"] == "set_transform"
+                and c["path"] == "/meshcat/regrasp/object"]
+    T_obj = np.array(T_obj, dtype=float).reshape(4, 4).T
+    np.testing.assert_allclose(T_obj, plan.steps[-1].T_palm_object, atol=1e-6)
+    visible = {c["path"].rsplit("_", 1)[1]: c["value"] for c in cmds
+               if c["type"] == "set_property" and "/labels/step_" in c["path"]}
+    assert visible == {str(i): i == len(plan.steps) - 1 for i in range(len(plan.steps))}
 
 
 def test_import_viewer_does_not_import_meshcat():
@@ -256,6 +273,12 @@ def test_show_serves_the_scene_on_localhost(plan, hand, obj, capsys):
         viewer.stop_live_viewers()
     assert all(p.poll() is not None for p in procs)
     blobs = re.findall(r'base64,([A-Za-z0-9+/=]+)"', html)
-    paths = {umsgpack.unpackb(base64.b64decode(b))["path"] for b in blobs}
+    cmds = [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
+    paths = {c["path"] for c in cmds}
     assert "/meshcat/regrasp/object/mesh" in paths
+    # the live server replays the animation before the static commands: the static scene is step 0
+    (T_obj,) = [c["matrix"] for c in cmds if c["type"] == "set_transform"
+                and c["path"] == "/meshcat/regrasp/object"]
+    T_obj = np.array(T_obj, dtype=float).reshape(4, 4).T
+    np.testing.assert_allclose(T_obj, plan.steps[0].T_palm_object, atol=1e-6)
     assert {f"/meshcat/regrasp/object/goal_contacts/{f}" for f in plan.fingers} <= paths
