@@ -272,7 +272,7 @@ def camera_offset(frames: list[Keyframe], center: NDArray, radius: float) -> NDA
     side /= np.linalg.norm(side)
     v = side + VIEW_TOWARD_PALM_SIDE * u + 0.3 * np.array([0.0, 0.0, 1.0])
     v /= np.linalg.norm(v)
-    dist = 1.35 * radius / np.tan(np.radians(_CAMERA_FOV_DEG) / 2.0)
+    dist = 1.2 * radius / np.tan(np.radians(_CAMERA_FOV_DEG) / 2.0)
     return v * dist
 
 
