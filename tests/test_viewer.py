@@ -282,3 +282,33 @@ def test_show_serves_the_scene_on_localhost(plan, hand, obj, capsys):
     T_obj = np.array(T_obj, dtype=float).reshape(4, 4).T
     np.testing.assert_allclose(T_obj, plan.steps[0].T_palm_object, atol=1e-6)
     assert {f"/meshcat/regrasp/object/goal_contacts/{f}" for f in plan.fingers} <= paths
+
+
+def test_keyframes_of_a_real_plan(yourdfpy_fk):
+    """A short plan from the real planner: every step's keyframe matches yourdfpy FK and the plan's
+    object pose, and during a gait only the moved finger's joints change."""
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "problems" / "box_rotate.yaml"
+    if not path.is_file():
+        pytest.skip(f"{path} not present")
+    from regrasp_casadi.planner import plan_regrasp
+    from regrasp_casadi.problem import RegraspProblem
+
+    problem = RegraspProblem.load(path)
+    hand = problem.hand
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, max_iters=2)
+    assert len(plan.steps) > 2
+    frames = viewer.plan_keyframes(plan, hand, problem.obj, fps=5, seconds_per_step=0.4)
+    at_steps = [f for f in frames if f.alpha == 1.0]
+    assert len(at_steps) == len(plan.steps)
+    for f, step in zip(at_steps, plan.steps, strict=True):
+        np.testing.assert_array_equal(f.T_palm_object, step.T_palm_object)
+        ref = yourdfpy_fk(step.q)
+        for link in hand.link_names:
+            np.testing.assert_allclose(f.T_palm_link[link], ref[link], atol=1e-9)
+    for f in frames:
+        step = plan.steps[f.step]
+        if step.kind == "gait" and f.step > 0:
+            others = np.setdiff1d(np.arange(hand.n_joints), hand.finger_joints[step.finger])
+            np.testing.assert_array_equal(f.q[others], plan.steps[f.step - 1].q[others])
