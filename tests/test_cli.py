@@ -247,3 +247,12 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert (code == 0) == (plan.status == "converged" and verify(plan).ok)
     assert "MeshCat.Viewer" in (tmp_path / "replay.html").read_text(encoding="utf-8")
     assert 3 <= len(capsys.readouterr().out.strip().splitlines()) <= 10
+
+
+@pytest.mark.slow
+def test_demo_generates_a_problem_when_the_file_is_missing(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(cli, "DEMO_PROBLEM", tmp_path / "absent.yaml")
+    code = cli.main(["demo", "--out-dir", str(tmp_path / "out"), "--no-progress"])
+    assert code in (0, 1)
+    assert "box_generated" in capsys.readouterr().out
+    assert (tmp_path / "out" / "plan.json").is_file() and (tmp_path / "out" / "replay.html").is_file()
