@@ -64,6 +64,7 @@ vertex τ·log 3 = 0.22 mm; the worst-case bound is τ·log k (0.83 mm for k = 6
 DEFAULT_THRESHOLD = 0.05
 """coacd concavity threshold (smaller: more, finer pieces)."""
 DEFAULT_MAX_PLANES = 64
+DEFAULT_EDGE_PLANES = 96  # extra edge/vertex support planes per piece (see add_edge_planes)
 """Cap on the planes of one convex piece after simplification (bounds the expression size)."""
 DEFAULT_MAX_PIECES = 16
 """Cap on the number of convex pieces coacd may return (its `max_convex_hull`)."""
@@ -156,6 +157,60 @@ def simplify_piece(
         normals = normals[chosen]
     offsets = np.max(hv @ normals.T, axis=0)
     return ConvexPiece(normals=normals, offsets=offsets, vertices=np.array(hv))
+
+
+def add_edge_planes(piece: ConvexPiece, max_extra: int = DEFAULT_EDGE_PLANES,
+                    step: float = np.radians(20.0)) -> ConvexPiece:
+    """Tighten a piece's distance bound outside, near its edges and corners, with extra support planes.
+
+    For a convex body C, d(p) = max over unit u of (u·p − h_C(u)) outside C; the face normals alone give
+    only a lower bound that is worst near edges (a point 14 mm out along the bisector of a 90° edge reads
+    as 9.9 mm). Here each hull edge whose dihedral angle exceeds `step` gets directions interpolated
+    between its two face normals (every `step`), and each hull vertex the normalised mean of its faces'
+    normals, all with exact support values h_C(u) = max_v u·v. Inside C every added plane reads at most
+    the true (negative) distance, so the value inside is unchanged; the piece still contains the hull.
+
+    Args:
+        piece: the piece (face planes).
+        max_extra: cap on the added planes (the edges with the largest dihedral angles first).
+        step: angular spacing of the added directions, rad.
+
+    Returns:
+        A piece with the face planes followed by the added planes.
+    """
+    if max_extra <= 0:
+        return piece
+    hull = trimesh.convex.convex_hull(piece.vertices)
+    fn = hull.face_normals
+    candidates: list[tuple[float, NDArray[np.float64]]] = []
+    for (a, b) in hull.face_adjacency:
+        angle = float(np.arccos(np.clip(fn[a] @ fn[b], -1.0, 1.0)))
+        if angle <= step:
+            continue
+        k = int(np.ceil(angle / step))
+        for j in range(1, k):  # slerp between the two face normals
+            t = j / k
+            u = (np.sin((1 - t) * angle) * fn[a] + np.sin(t * angle) * fn[b]) / np.sin(angle)
+            candidates.append((angle, u / np.linalg.norm(u)))
+    vertex_faces = hull.vertex_faces
+    for v in range(len(hull.vertices)):
+        faces = vertex_faces[v][vertex_faces[v] >= 0]
+        u = fn[faces].sum(axis=0)
+        spread = float(np.max(np.arccos(np.clip(fn[faces] @ (u / np.linalg.norm(u)), -1, 1))))
+        if spread > step:
+            candidates.append((2 * spread, u / np.linalg.norm(u)))
+    candidates.sort(key=lambda c: -c[0])
+    normals = list(piece.normals)
+    added = 0
+    for _, u in candidates:
+        if added >= max_extra:
+            break
+        if max(float(u @ n) for n in normals) > np.cos(np.radians(2.0)):
+            continue  # a direction this close is there already
+        normals.append(u)
+        added += 1
+    N = np.array(normals)
+    return ConvexPiece(normals=N, offsets=np.max(piece.vertices @ N.T, axis=0), vertices=piece.vertices)
 
 
 def _mesh_hash(mesh: trimesh.Trimesh) -> str:
@@ -265,7 +320,7 @@ class ObjectModel:
             verts = [np.asarray(mesh.vertices)]
         else:
             verts = _decompose(mesh, threshold, max_pieces)
-        pieces = tuple(simplify_piece(v, max_planes_per_piece) for v in verts)
+        pieces = tuple(add_edge_planes(simplify_piece(v, max_planes_per_piece)) for v in verts)
         if spec is None:
             spec = {"inline_mesh": {"vertices": mesh.vertices.tolist(), "faces": mesh.faces.tolist()}}
             if not convex:
@@ -452,6 +507,29 @@ class ObjectModel:
                 d_pieces.append(_lse_unit(y))  # d_C / τ
             d = -tau * _lse_unit(-ca.vertcat(*d_pieces))
             f = ca.Function(f"sd_{self.name}", [p], [d], ["p_object"], ["d"])
+            self._sd_functions[key] = f
+        return f
+
+    def clearance_distance_function(self, max_planes: int = 16, tau: float | None = None) -> ca.Function:
+        """A coarse smooth signed distance for clearance constraints: p_object (3,1) -> d (1,1), m.
+
+        Each piece is re-simplified to at most `max_planes` planes (exact support values, so each coarse
+        piece contains its piece and the value is a lower bound of the fine model's hard distance up to
+        the smoothing bias): cheaper to differentiate, and conservative where only d ≥ β matters. Cached.
+        """
+        tau = float(DEFAULT_TAU if tau is None else tau)
+        key = ("coarse", int(max_planes), tau)
+        f = self._sd_functions.get(key)
+        if f is None:
+            p = ca.SX.sym("p_object", 3)
+            d_pieces = []
+            for piece in self.pieces:
+                coarse = piece if len(piece.normals) <= max_planes else simplify_piece(piece.vertices,
+                                                                                      max_planes)
+                y = ca.mtimes(ca.DM(coarse.normals / tau), p) - ca.DM(coarse.offsets / tau)
+                d_pieces.append(_lse_unit(y))
+            d = -tau * _lse_unit(-ca.vertcat(*d_pieces))
+            f = ca.Function(f"sd_coarse_{self.name}", [p], [d], ["p_object"], ["d"])
             self._sd_functions[key] = f
         return f
 
