@@ -40,7 +40,7 @@ _LAZY = {
     "PlanFormatError": "regrasp_casadi.errors",
 }
 
-__all__ = ["__version__", *_LAZY]
+__all__ = ["__version__", *_LAZY]  # noqa: PLE0604
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.errors import (  # noqa: F401

@@ -43,6 +43,8 @@ class FingerGaitOptions:
     """Maximum number of re-solves of the exact-contact correction."""
     tau: float | None = None
     """Temperature of the smooth signed distance (None: the object's default), m."""
+    clearance_planes: int = 16
+    """Planes per convex piece of the coarse distance used for the clearance constraints."""
     print_level: int = 0
     """IPOPT print level (0 = quiet)."""
 
@@ -110,6 +112,7 @@ class FingerGaitNLP:
         k = radii.size
         self._radii = radii
         sd = obj.signed_distance_function(o.tau)
+        sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
 
         # decision variables
         q_r = ca.SX.sym("q_r", idx.size)
@@ -130,7 +133,7 @@ class FingerGaitNLP:
         c_obj = terms.to_object_frame(R, t, c_palm)
         if k:
             s_obj = terms.to_object_frame(R, t, hand.sphere_centers_function(finger)(q_full))
-            sd_l = terms.smooth_signed_distances(sd, s_obj)
+            sd_l = terms.smooth_signed_distances(sd_coarse, s_obj)
         else:
             s_obj = ca.SX(3, 0)
             sd_l = ca.SX(0, 1)

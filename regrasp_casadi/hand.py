@@ -494,7 +494,8 @@ class Hand:
         def build():
             p = self._center_expr(self._tip_sphere[finger])
             return ca.Function(
-                _function_name("J_tip", finger), [self._q], [ca.jacobian(p, self._q)], ["q"], ["J_palm_tip"], {"cse": True}
+                _function_name("J_tip", finger), [self._q], [ca.jacobian(p, self._q)], ["q"], ["J_palm_tip"],
+                {"cse": True},
             )
 
         return self._cached(("jac", finger), build)

@@ -30,8 +30,7 @@ __all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "wo
 
 _log = logging.getLogger(__name__)
 
-_CM = 1e2  # positions in the objective: m → cm
-_MM = 1e3  # distance constraints: m → mm
+_MM = 1e3  # positions in the objective and distance constraints: m → mm
 
 
 @dataclass(frozen=True)
@@ -48,10 +47,17 @@ class InGraspOptions:
     """Trust region: largest object translation per reposing, per axis, m."""
     max_rotation: float = 0.3
     """Trust region: bound on each component of the Cayley vector tan(θ/2)·axis (0.3 ≈ 33°)."""
+    sd_margin: float = 0.02
+    """SD method: depth inside its workspace hull each goal tip centre is pulled to, m (0 = the paper's
+    max(0, SD); a margin keeps pulling goals that are inside the convex hull but not reachable)."""
     tau_hull: float = 0.002
     """Temperature of the smooth distance to the workspace hulls and of the smooth max(0, ·), m."""
     tau: float | None = None
     """Temperature of the object's smooth signed distance (None: the object's default), m."""
+    clearance_planes: int = 16
+    """Planes per convex piece of the coarse distance used for the clearance constraints."""
+    max_slip: float = 5e-4
+    """A result whose tip centres moved more than this relative to the object is rejected, m."""
     max_corrections: int = 2
     """Re-solves with exact-distance offsets when a sphere's exact clearance is below β/2."""
     print_level: int = 0
@@ -69,7 +75,7 @@ class InGraspResult:
     status: str
     """IPOPT return_status of the last solve."""
     success: bool
-    """True when the solver converged and the exact clearance holds."""
+    """True when the result is valid with exact geometry: clearance ≥ 0 and slip ≤ `max_slip`."""
     iterations: int
     """IPOPT iterations over all solves."""
     solve_time: float
@@ -78,6 +84,8 @@ class InGraspResult:
     """Largest displacement of a tip centre relative to the object, m."""
     min_clearance: float
     """Smallest exact distance of a non-tip sphere to the object, m."""
+    surface_error: float
+    """Largest |SD_exact(tip centre) − tip radius| over the fingers, m."""
 
 
 @dataclass(frozen=True)
@@ -125,19 +133,23 @@ class InGraspNLP:
     .. math::
         \min_{\Theta, \Delta t, w} \; E_{des} + k_1 E_{pos}(\Theta) + k_2 E_{or}(\Theta)
         \quad \text{s.t.} \quad \Theta_{min} \preceq \Theta \preceq \Theta_{max},\;
-        SD(R^T(FK_l(\Theta) - t), M) + \delta_l - \rho_l \ge \beta \;\; \forall \text{non-tip spheres } l
+        SD(R^T(FK_l(\Theta) - t), M) + \delta_l - \rho_l \ge \beta \;\; \forall \text{non-tip spheres } l, \;
+        SD(R^T(FK_r(\Theta) - t), M) + \delta_r = \rho \;\; \forall \text{fingers } r
 
     Relaxed rigidity (Sundaralingam & Hermans, 2017): with c_r the tip-sphere centres and
     R_{O,r} the tip orientations in the object frame at the start,
-    ``E_pos = Σ_r ||FK_r(Θ) − (R c_r + t)||²`` (cm²) and ``E_or = Σ_r ||R_r(Θ) − R R_{O,r}||_F²``.
+    ``E_pos = Σ_r ||FK_r(Θ) − (R c_r + t)||²`` (mm²) and ``E_or = Σ_r ||R_r(Θ) − R R_{O,r}||_F²``.
 
     * ``method="pose"`` (the paper's SVD form, and the final in-grasp move):
-      ``E_des = ||t − t*||² + (ℓ²/2) ||R − R*||_F²`` (cm², ℓ the object's radius in cm), with the target
+      ``E_des = ||t − t*||² + (ℓ²/2) ||R − R*||_F²`` (mm², ℓ the object's radius in mm), with the target
       pose (R*, t*) passed as a parameter; the planner computes it by Kabsch / Besl–McKay.
-    * ``method="sd"``: ``E_des = Σ_r max(0, SD(R g_r + t, R_r))`` (cm), g_r the goal tip centres in the
-      object frame and R_r the finger's reachable-workspace hull; max and SD are smoothed (``tau_hull``).
+    * ``method="sd"``: ``E_des = Σ_r max(0, SD(R g_r + t, R_r) + m)`` (mm), g_r the goal tip centres in
+      the object frame, R_r the finger's reachable-workspace hull and m ≥ 0 a margin (``sd_margin``; the
+      paper's form is m = 0); max and SD are smoothed (``tau_hull``).
 
-    A trust region bounds |Δt| and |w| per reposing. δ_l are exact-distance offsets (see FingerGaitNLP).
+    The tip-on-surface equality is an addition to the paper's OPT2: the relaxed rigidity alone lets a
+    tip drift off the surface by ~0.1–1 mm when other constraints are active. A trust region bounds |Δt|
+    and |w| per reposing. δ are exact-distance offsets (see FingerGaitNLP).
     """
 
     _n_builds = 0
@@ -154,7 +166,8 @@ class InGraspNLP:
         k = radii.size
         self._radii, self._k, self._n, self._m = radii, k, n, m
         sd = obj.signed_distance_function(o.tau)
-        ell_cm = _CM * 0.5 * float(np.linalg.norm(obj.mesh.extents))
+        sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
+        ell_mm = _MM * 0.5 * float(np.linalg.norm(obj.mesh.extents))
 
         # decision variables
         q = ca.SX.sym("q", n)
@@ -166,7 +179,7 @@ class InGraspNLP:
         t0 = ca.SX.sym("t0_palm_object", 3)
         c_tips = ca.SX.sym("p_object_tips", 3, m)
         R_tips = ca.SX.sym("R_object_tips", 9, m)
-        delta_l = ca.SX.sym("delta_l", k)
+        delta_l = ca.SX.sym("delta_l", k + m)  # exact-distance offsets: non-tip spheres, then tips
         if method == "pose":
             R_star_vec = ca.SX.sym("R_target", 9)
             t_star = ca.SX.sym("t_target", 3)
@@ -182,29 +195,33 @@ class InGraspNLP:
         e_pos = 0
         e_or = 0
         for r, finger in enumerate(hand.fingers):
-            e_pos += ca.sumsqr(_CM * (tips_palm[:, r] - (R @ c_tips[:, r] + t)))
+            e_pos += ca.sumsqr(_MM * (tips_palm[:, r] - (R @ c_tips[:, r] + t)))
             R_tip = hand.link_rotation_function(hand.tip_links[finger])(q)
             e_or += terms.rotation_error_sq(R_tip, R @ ca.reshape(R_tips[:, r], 3, 3))
         if method == "pose":
-            e_des = ca.sumsqr(_CM * (t - t_star)) + 0.5 * ell_cm**2 * terms.rotation_error_sq(
+            e_des = ca.sumsqr(_MM * (t - t_star)) + 0.5 * ell_mm**2 * terms.rotation_error_sq(
                 R, ca.reshape(R_star_vec, 3, 3))
         else:
             self.hulls = [workspace_hull(hand, f) for f in hand.fingers]
             e_des = 0
             for r, hull in enumerate(self.hulls):
                 d = terms.hull_signed_distance(hull.normals, hull.offsets, R @ g_tips[:, r] + t, o.tau_hull)
-                e_des += _CM * terms.softplus(d, o.tau_hull)
+                d = d + o.sd_margin
+                e_des += _MM * terms.softplus(d, o.tau_hull)
         f = e_des + o.k_pos * e_pos + o.k_orient * e_or
-        # constraints
-        s_obj = terms.to_object_frame(R, t, hand.sphere_centers_function(None)(q))
-        sd_l = terms.smooth_signed_distances(sd, s_obj)
-        g = _MM * (sd_l + delta_l - ca.DM(radii))
+        # constraints: non-tip spheres keep β; the tips stay on the surface
+        s_obj = terms.to_object_frame(R, t, ca.horzcat(hand.sphere_centers_function(None)(q), tips_palm))
+        sd_l = ca.vertcat(terms.smooth_signed_distances(sd_coarse, s_obj[:, :k]),
+                          terms.smooth_signed_distances(sd, s_obj[:, k:]))
+        radii_all = np.concatenate([radii, np.full(m, hand.tip_radius)])
+        g = _MM * (sd_l + delta_l - ca.DM(radii_all))
         # bounds
         big_t, big_w = o.max_translation, o.max_rotation
         self._lbx = np.concatenate([hand.q_lower, np.full(3, -big_t), np.full(3, -big_w)])
         self._ubx = np.concatenate([hand.q_upper, np.full(3, big_t), np.full(3, big_w)])
-        self._lbg = np.full(k, _MM * o.beta)
-        self._ubg = np.full(k, np.inf)
+        self._lbg = np.concatenate([np.full(k, _MM * o.beta), np.zeros(m)])
+        self._ubg = np.concatenate([np.full(k, np.inf), np.zeros(m)])
+        self._radii_all = radii_all
         # solver
         self._solver = ca.nlpsol(f"in_grasp_{method}", "ipopt", {"x": x, "p": p, "f": f, "g": g},
                                  _solver.ipopt_options(print_level=o.print_level))
@@ -255,7 +272,8 @@ class InGraspNLP:
                                    R_tips.ravel(order="F"), delta, target])
 
         x = np.concatenate([q, np.zeros(6)])
-        exact, smooth, _ = self._exact_clearance(x, params(np.zeros(self._k)))
+        n_pts = self._k + self._m
+        exact, smooth, _ = self._exact_clearance(x, params(np.zeros(n_pts)))
         delta = exact - smooth
         t_solve, iters = 0.0, 0
         res = None
@@ -272,15 +290,21 @@ class InGraspNLP:
             if res.success:
                 self._lam = (res.lam_x, res.lam_g)
             exact, smooth, _ = self._exact_clearance(x, p)
-            if np.min(exact - self._radii) >= 0.5 * o.beta:
+            gap = exact - self._radii_all
+            clear = np.min(gap[: self._k], initial=np.inf)
+            if clear >= 0.5 * o.beta and np.max(np.abs(gap[self._k:])) <= 5e-5:
                 break
             delta = exact - smooth
-        exact, _, T_new = self._exact_clearance(x, params(np.zeros(self._k)))
+        exact, _, T_new = self._exact_clearance(x, params(np.zeros(n_pts)))
+        surface_error = float(np.max(np.abs(exact[self._k:] - self.hand.tip_radius)))
         q_new = x[: self._n]
         tips_obj = (hand.tip_positions(q_new) - T_new[:3, 3]) @ T_new[:3, :3]
         max_slip = float(np.max(np.linalg.norm(tips_obj - c_tips, axis=1)))
-        min_clear = float(np.min(exact - self._radii)) if self._k else float("inf")
-        ok = bool(res.success and min_clear >= 0.0 and np.all(np.isfinite(x)))
+        min_clear = float(np.min(exact[: self._k] - self._radii)) if self._k else float("inf")
+        # accepted when the exact checks hold, whatever IPOPT's status (e.g. a converged point reported
+        # as Search_Direction_Becomes_Too_Small is still a valid reposing)
+        ok = bool(np.all(np.isfinite(x)) and min_clear >= 0.0 and max_slip <= o.max_slip
+                  and surface_error <= 1e-4)
         return InGraspResult(q=q_new, T_palm_object=T_new, status=res.status, success=ok,
                              iterations=iters, solve_time=t_solve, max_slip=max_slip,
-                             min_clearance=min_clear)
+                             min_clearance=min_clear, surface_error=surface_error)

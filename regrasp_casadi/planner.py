@@ -61,6 +61,13 @@ class PlannerOptions:
     """Largest number of final in-grasp moves (each bounded by the OPT2 trust region)."""
     final_pose_tol: float = 1e-3
     """Stop the final moves when the object is this close to the desired pose (m, and rad × 0.1 m)."""
+    stall_tol: float = 1e-4
+    """An iteration makes progress when the largest contact error drops by more than this, m."""
+    stall_escape: int = 2
+    """After this many iterations without progress, reposings move towards the desired object pose
+    (an addition to the paper: the desired grasp is feasible there, so its contacts become reachable)."""
+    stall_limit: int = 8
+    """After this many iterations without progress the plan stops with status "stalled"."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     tau: float | None = None
@@ -172,8 +179,9 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
             every iteration.
 
     Returns:
-        A `Plan` whose `status` says why it stopped: "converged", "iteration_limit", "solver_failure"
-        (with the step and IPOPT's status in `status_detail`) or "invalid_input". A failed solve never
+        A `Plan` whose `status` says why it stopped: "converged", "iteration_limit", "stalled" (no
+        progress for `stall_limit` iterations), "solver_failure" (with the step and IPOPT's status in
+        `status_detail`) or "invalid_input". A failed solve never
         raises: the plan ends with the steps so far.
     """
     t_start = time.perf_counter()
@@ -219,7 +227,12 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     errors = [float(np.mean(step.contact_error))]
     err = float(np.max(step.contact_error))
     n = 0
+    failures: list[str] = []  # failed solves of the current iteration ("<what>: IPOPT <status>")
+    best_err, stalled = err, 0  # progress watch: iterations since the largest error last dropped
+    final_pose_nlp = final_nlp or run.in_grasp_nlp("pose")
     while err > options.zeta and n < options.max_iters:
+        failures.clear()
+        n_steps_before = len(run.steps)
         for finger in run.gait:
             r = fingers.index(finger)
             if run.steps[-1].contact_error[r] <= options.skip_tol:
@@ -227,14 +240,11 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
             res = gait_nlps[finger].solve(q, T, goal_tips[r])
             run.timing["opt1"] += res.solve_time
             run.solves["opt1"] += res.solves
-            if not res.success:
-                if res.status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level",
-                                      "Maximum_Iterations_Exceeded"):
-                    return make_plan(run, "solver_failure",
-                                     f"finger gait of {finger} at step {len(run.steps)}: IPOPT {res.status} "
-                                     f"(surface error {res.surface_error * 1e3:.3f} mm, clearance "
-                                     f"{res.min_clearance * 1e3:.3f} mm)", n, errors)
-                _log.debug("gait %s not feasible (%s); finger stays", finger, res.status)
+            if not res.success:  # the finger stays where it is, which is feasible
+                failures.append(f"finger gait of {finger} at step {len(run.steps)}: IPOPT {res.status} "
+                                f"(surface error {res.surface_error * 1e3:.3f} mm, clearance "
+                                f"{res.min_clearance * 1e3:.3f} mm)")
+                _log.debug("%s; the finger stays", failures[-1])
                 continue
             moved = np.linalg.norm(hand.tip_positions(res.q)[r] - hand.tip_positions(q)[r])
             if moved < 1e-5:
@@ -244,25 +254,38 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         err = float(np.max(run.steps[-1].contact_error))
         if err > options.zeta:
             tips = run.tips_object(q, T)
-            if options.method == "svd":
+            nlp = repose_nlp
+            if stalled >= options.stall_escape:  # escape: repose towards the desired object pose
+                nlp, target = final_pose_nlp, {"T_target": goal_T}
+            elif options.method == "svd":
                 T_rel = kabsch(run.steps[-1].contacts_object, goal_contacts)  # X_goal ≈ T_rel · X
                 target = {"T_target": T @ inv_T(T_rel)}  # so that o'·X_goal ≈ o·X
             else:
                 target = {"p_object_tips_goal": goal_tips}
-            res2 = repose_nlp.solve(q, T, tips, **target)
+            res2 = nlp.solve(q, T, tips, **target)
             run.timing["opt2"] += res2.solve_time
             run.solves["opt2"] += 1
-            if not res2.success:
-                return make_plan(run, "solver_failure",
-                                 f"reposing at step {len(run.steps)}: IPOPT {res2.status} (clearance "
-                                 f"{res2.min_clearance * 1e3:.3f} mm)", n, errors)
-            q, T = res2.q, res2.T_palm_object
-            step = run.add_step("repose", None, q, T, res2.status, res2.solve_time)
-            err = float(np.max(step.contact_error))
+            if res2.success:
+                q, T = res2.q, res2.T_palm_object
+                step = run.add_step("repose", None, q, T, res2.status, res2.solve_time)
+                err = float(np.max(step.contact_error))
+            else:  # the object stays where it is
+                failures.append(f"reposing at step {len(run.steps)}: IPOPT {res2.status} (clearance "
+                                f"{res2.min_clearance * 1e3:.3f} mm)")
+                _log.debug("%s; the object stays", failures[-1])
         n += 1
         errors.append(float(np.mean(run.steps[-1].contact_error)))
         if progress is not None:
             progress(n, options.max_iters, errors[-1])
+        if failures and len(run.steps) == n_steps_before:  # nothing could move: stuck on failures
+            return make_plan(run, "solver_failure", "; ".join(failures), n, errors)
+        if err < best_err - options.stall_tol:
+            best_err, stalled = err, 0
+        else:
+            stalled += 1
+            if stalled >= options.stall_limit:
+                return make_plan(run, "stalled", f"largest contact error {err * 1e3:.2f} mm > ζ: no progress "
+                                 f"in the last {stalled} iterations", n, errors)
     converged = err <= options.zeta
     if final_nlp is not None and converged:
         for _ in range(options.max_final_moves):

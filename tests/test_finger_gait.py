@@ -19,24 +19,25 @@ def problem():
     return RegraspProblem.load(BOX_PROBLEM)
 
 
-def _surface_target(problem, finger: str, offset: np.ndarray) -> np.ndarray:
-    """A goal tip centre (object frame): the current contact moved by `offset` along the surface."""
-    g0 = problem.grasp0
-    r = problem.hand.fingers.index(finger)
-    contact = g0.contacts_object[r] + offset
-    closest, _ = problem.obj.closest_points(contact[None])
-    normal = problem.obj.surface_normals(closest)[0]
-    return closest[0] + problem.hand.tip_radius * normal
+def _on_face_goal(problem, finger: str, distance: float) -> np.ndarray:
+    """A goal tip centre (object frame): the finger's contact slid `distance` along its own face.
 
-
-def _tangent(problem, finger: str) -> np.ndarray:
-    g0 = problem.grasp0
-    r = problem.hand.fingers.index(finger)
-    n = problem.obj.surface_normals(g0.contacts_object[r][None])[0]
-    t = np.cross(n, [0.0, 0.0, 1.0])
-    if np.linalg.norm(t) < 1e-6:
-        t = np.cross(n, [1.0, 0.0, 0.0])
-    return t / np.linalg.norm(t)
+    Tries directions in the tangent plane and keeps the first whose moved point stays on the same face
+    (same outward normal), so the goal is on the surface next to the current contact.
+    """
+    obj, hand = problem.obj, problem.hand
+    r = hand.fingers.index(finger)
+    contact = np.asarray(problem.grasp0.contacts_object[r])
+    n = obj.surface_normals(contact[None])[0]
+    a = np.cross(n, [0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.cross(n, [1.0, 0.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(n, a)
+    for angle in np.linspace(0.0, 2 * np.pi, 16, endpoint=False):
+        moved = contact + distance * (np.cos(angle) * a + np.sin(angle) * b)
+        closest, _ = obj.closest_points(moved[None])
+        if np.linalg.norm(closest[0] - moved) < 1e-7 and obj.surface_normals(closest)[0] @ n > 0.9999:
+            return closest[0] + hand.tip_radius * n
+    pytest.skip(f"no room on the {finger} contact's face to slide {distance * 1e3:.0f} mm")
 
 
 def _check_constraints(problem, finger, q_before, q_after, eta, beta):
@@ -59,7 +60,7 @@ def _check_constraints(problem, finger, q_before, q_after, eta, beta):
 @pytest.mark.parametrize("finger", ["index", "thumb"])
 def test_gait_reaches_a_near_goal(problem, finger):
     nlp = FingerGaitNLP(problem.hand, problem.obj, finger)
-    goal = _surface_target(problem, finger, 0.006 * _tangent(problem, finger))
+    goal = _on_face_goal(problem, finger, 0.004)
     g0 = problem.grasp0
     res = nlp.solve(g0.q, g0.T_palm_object, goal)
     assert res.success, res.status
@@ -68,14 +69,15 @@ def test_gait_reaches_a_near_goal(problem, finger):
 
 
 def test_gait_far_goal_takes_a_step_of_eta(problem):
-    nlp = FingerGaitNLP(problem.hand, problem.obj, "middle")
-    goal = _surface_target(problem, "middle", 0.04 * _tangent(problem, "middle"))
     g0 = problem.grasp0
-    r = problem.hand.fingers.index("middle")
+    finger = "thumb"
+    r = problem.hand.fingers.index(finger)
+    goal = _on_face_goal(problem, finger, 0.025)  # 2.5 cm along the face: farther than η
+    nlp = FingerGaitNLP(problem.hand, problem.obj, finger)
     before = np.linalg.norm(g0.tip_centers_object[r] - goal)
     res = nlp.solve(g0.q, g0.T_palm_object, goal)
     assert res.success, res.status
-    step = _check_constraints(problem, "middle", np.asarray(g0.q), res.q, nlp.options.eta, nlp.options.beta)
+    step = _check_constraints(problem, finger, np.asarray(g0.q), res.q, nlp.options.eta, nlp.options.beta)
     after = np.linalg.norm(res.p_object_tip - goal)
     assert step == pytest.approx(nlp.options.eta, abs=1e-5)  # the step bound is active
     assert after < before - 0.5 * nlp.options.eta  # and the tip got closer by a good part of it
@@ -86,13 +88,13 @@ def test_resolving_does_not_rebuild(problem):
     builds = FingerGaitNLP.build_count()
     g0 = problem.grasp0
     for k in range(3):
-        goal = _surface_target(problem, "ring", 0.003 * (k + 1) * _tangent(problem, "ring"))
+        goal = _on_face_goal(problem, "ring", 0.002 * (k + 1))
         nlp.solve(g0.q, g0.T_palm_object, goal)
     assert FingerGaitNLP.build_count() == builds
 
 
 def test_gait_solution_is_deterministic(problem):
-    goal = _surface_target(problem, "index", 0.02 * _tangent(problem, "index"))
+    goal = problem.grasp_goal.tip_centers_object[problem.hand.fingers.index("index")]
     g0 = problem.grasp0
     a = FingerGaitNLP(problem.hand, problem.obj, "index").solve(g0.q, g0.T_palm_object, goal)
     b = FingerGaitNLP(problem.hand, problem.obj, "index").solve(g0.q, g0.T_palm_object, goal)

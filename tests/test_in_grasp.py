@@ -30,20 +30,31 @@ def _clearance(problem, q, T):
     return obj.exact_signed_distance(centres) - hand.sphere_radii()
 
 
-def test_small_translation_is_reached_and_contacts_kept(problem, pose_nlp):
+def test_small_translations_are_reached_unless_a_constraint_blocks(problem, pose_nlp):
+    """Each 2 mm translation of the object is reached, or the object stops at an active constraint
+    (a sphere at clearance β or a joint at its limit); contacts are kept and nothing penetrates."""
     g0 = problem.grasp0
-    T_target = np.array(g0.T_palm_object)
-    T_target[:3, 3] += [0.004, -0.003, 0.002]
-    res = pose_nlp.solve(g0.q, g0.T_palm_object, g0.tip_centers_object, T_target=T_target)
-    assert res.success, res.status
-    assert np.linalg.norm(res.T_palm_object[:3, 3] - T_target[:3, 3]) <= 5e-4
-    assert rotation_angle(res.T_palm_object[:3, :3], T_target[:3, :3]) <= 5e-3
-    # relaxed rigidity keeps every tip centre where it was on the object (independent recomputation)
-    tips_obj = transform_points(inv_T(res.T_palm_object), problem.hand.tip_positions(res.q))
-    assert np.max(np.linalg.norm(tips_obj - g0.tip_centers_object, axis=1)) <= 1e-4
-    assert res.max_slip <= 1e-4
-    assert _clearance(problem, res.q, res.T_palm_object).min() >= 0.0
-    assert np.all(res.q >= problem.hand.q_lower - 1e-9) and np.all(res.q <= problem.hand.q_upper + 1e-9)
+    hand, beta = problem.hand, pose_nlp.options.beta
+    reached = 0
+    for d in np.vstack([np.eye(3), -np.eye(3)]) * 0.002:
+        T_target = np.array(g0.T_palm_object)
+        T_target[:3, 3] += d
+        res = pose_nlp.solve(g0.q, g0.T_palm_object, g0.tip_centers_object, T_target=T_target)
+        assert res.success, res.status
+        clearance = _clearance(problem, res.q, res.T_palm_object)
+        assert clearance.min() >= 0.0
+        at_limit = np.any(np.minimum(res.q - hand.q_lower, hand.q_upper - res.q) <= 1e-6)
+        miss = np.linalg.norm(res.T_palm_object[:3, 3] - T_target[:3, 3])
+        if miss <= 3e-4:
+            reached += 1
+            assert rotation_angle(res.T_palm_object[:3, :3], T_target[:3, :3]) <= 5e-3
+        else:
+            assert clearance.min() <= beta + 5e-5 or at_limit, f"stopped {miss * 1e3:.2f} mm short, unblocked"
+        # relaxed rigidity keeps every tip centre where it was on the object (independent recomputation)
+        tips_obj = transform_points(inv_T(res.T_palm_object), hand.tip_positions(res.q))
+        assert np.max(np.linalg.norm(tips_obj - g0.tip_centers_object, axis=1)) <= 1e-4
+        assert np.all(res.q >= hand.q_lower - 1e-9) and np.all(res.q <= hand.q_upper + 1e-9)
+    assert reached >= 1
 
 
 def test_unreachable_target_moves_towards_it(problem, pose_nlp):
@@ -78,12 +89,13 @@ def test_sd_method_pulls_goals_towards_the_workspaces(problem):
 
 def test_workspace_hull_contains_its_samples(problem):
     hand = problem.hand
-    hull = workspace_hull(hand, "thumb")
-    samples = hand.tip_workspace_samples("thumb", n=2000, seed=7)
-    # planes keep their exact support values over the 4000 build samples; fresh samples may poke out
-    # only by the sampling gap
-    assert np.max(samples @ hull.normals.T - hull.offsets) <= 3e-3
+    hull = workspace_hull(hand, "thumb", n_samples=3000, seed=5)
+    samples = hand.tip_workspace_samples("thumb", n=3000, seed=5)
+    # the kept planes carry their exact support values over the samples: none lies outside
+    assert np.max(samples @ hull.normals.T - hull.offsets) <= 1e-12
+    assert np.min(np.max(samples @ hull.normals.T - hull.offsets, axis=0)) >= -1e-12  # every plane touches
     assert np.allclose(np.linalg.norm(hull.normals, axis=1), 1.0)
+    assert len(hull.offsets) <= 64
 
 
 def test_kabsch_recovers_a_rigid_transform():
