@@ -29,7 +29,6 @@ _LAZY = {
     "PlannerOptions": "regrasp_casadi.planner",
     "FingerGaitNLP": "regrasp_casadi.finger_gait",
     "InGraspNLP": "regrasp_casadi.in_grasp",
-    "verify": "regrasp_casadi.verify",
     "VerifyReport": "regrasp_casadi.verify",
     "generate_grasps": "regrasp_casadi.grasp_gen",
     "RegraspError": "regrasp_casadi.errors",
@@ -40,7 +39,11 @@ _LAZY = {
     "PlanFormatError": "regrasp_casadi.errors",
 }
 
-__all__ = ["__version__", *_LAZY]  # noqa: PLE0604
+__all__ = ["__version__", "verify", *_LAZY]  # noqa: PLE0604
+
+# `verify` is bound eagerly: a lazily returned function would be replaced by the submodule of the same
+# name as soon as `regrasp_casadi.verify` is imported anywhere.
+from regrasp_casadi.verify import verify  # noqa: E402
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.errors import (  # noqa: F401
@@ -58,7 +61,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.in_grasp import InGraspNLP  # noqa: F401
     from regrasp_casadi.planner import PlannerOptions, plan_regrasp  # noqa: F401
     from regrasp_casadi.problem import RegraspProblem  # noqa: F401
-    from regrasp_casadi.verify import VerifyReport, verify  # noqa: F401
+    from regrasp_casadi.verify import VerifyReport  # noqa: F401
 
 
 def __getattr__(name: str):
