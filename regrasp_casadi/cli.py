@@ -2,7 +2,7 @@
 
     regrasp plan PROBLEM.yaml --method svd --out plan.json [--html replay.html] [--view] [--max-iters N]
     regrasp verify plan.json [--all]
-    regrasp view plan.json [--html replay.html]
+    regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]]
     regrasp grasps MESH_OR_PROBLEM [--n N] [--seed S] [--out problems/x.yaml]
     regrasp bench [ARGS ...]          (runs benchmarks/paper_objects.py)
     regrasp demo [--out-dir DIR] [--method svd]
@@ -192,11 +192,21 @@ def cmd_verify(args: argparse.Namespace) -> int:
 
 def cmd_view(args: argparse.Namespace) -> int:
     plan = _load_plan(args.plan)
-    if args.html:
+    if args.html or args.png:
+        import tempfile
+
         from regrasp_casadi.viewer import write_html
 
-        path = write_html(plan, args.html)
-        print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
+        with tempfile.TemporaryDirectory() as tmp:
+            path = write_html(plan, args.html or Path(tmp) / "replay.html")
+            if args.html:
+                print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
+            if args.png:
+                from regrasp_casadi.screenshot import screenshot
+
+                seconds = args.at if args.at is not None else 0.8 * len(plan.steps) + 1.0  # the end
+                png = screenshot(path, args.png, seconds=seconds)
+                print(f"wrote {png} (the replay at {seconds:.1f} s)")
         return EXIT_OK
     return _view_live(plan)
 
@@ -326,6 +336,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp = add("view", "replay a plan: live viewer on localhost, or a self-contained HTML file")
     sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
     sp.add_argument("--html", metavar="REPLAY.html", help="write the HTML replay and exit")
+    sp.add_argument("--png", metavar="SHOT.png",
+                    help="write a screenshot of the replay (needs chromium) and exit")
+    sp.add_argument("--at", type=float, metavar="SECONDS",
+                    help="replay time of the screenshot (default: the end)")
     sp.set_defaults(func=cmd_view)
 
     sp = add("grasps", "generate precision grasps on a mesh (or a problem's object)")

@@ -54,7 +54,7 @@ OBJECT_COLOR = 0xF2A93B     # amber
 OBJECT_OPACITY = 0.7        # see the contacts behind the object
 GOAL_COLOR = 0x22BB33       # green: desired contacts
 CONTACT_COLOR = 0xE02020    # red: current contacts
-GOAL_RADIUS = 0.004         # m
+GOAL_RADIUS = 0.006         # m
 CONTACT_RADIUS = 0.0035     # m
 
 _ROOT = "regrasp"          # under /meshcat

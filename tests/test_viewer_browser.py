@@ -6,16 +6,11 @@ amber) — not a blank page, an error page or an empty canvas.
 
 from __future__ import annotations
 
-import shutil
-import subprocess
-from pathlib import Path
-
 import numpy as np
 import pytest
 from test_viewer import make_plan
 
-CHROMIUM = next((p for p in ("/usr/bin/chromium", shutil.which("chromium"), shutil.which("chromium-browser"))
-                 if p and Path(p).exists()), None)
+from regrasp_casadi.screenshot import find_chromium, screenshot
 
 
 def _hue_mask(rgb: np.ndarray, color: int, tol_deg: float = 14.0) -> np.ndarray:
@@ -37,7 +32,7 @@ def _hue_mask(rgb: np.ndarray, color: int, tol_deg: float = 14.0) -> np.ndarray:
 
 @pytest.mark.browser
 def test_html_replay_draws_hand_and_object(hand, tmp_path):
-    if CHROMIUM is None:
+    if find_chromium() is None:
         pytest.skip("chromium not installed (.ci/run installs Debian's chromium)")
     from PIL import Image
 
@@ -47,13 +42,7 @@ def test_html_replay_draws_hand_and_object(hand, tmp_path):
     plan = make_plan(hand)
     html = viewer.write_html(plan, tmp_path / "replay.html", hand=hand,
                              obj=ObjectModel.box((0.05, 0.06, 0.12)))
-    png = tmp_path / "shot.png"
-    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
-           "--disable-background-networking", "--disable-component-update", "--disable-sync",
-           "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}", "--window-size=800,600",
-           "--virtual-time-budget=8000", f"--screenshot={png}", f"file://{html}"]
-    proc = subprocess.run(cmd, check=False, capture_output=True, text=True, timeout=120)
-    assert png.exists(), f"no screenshot; chromium said:\n{proc.stderr[-2000:]}"
+    png = screenshot(html, tmp_path / "shot.png", width=800, height=600)
     rgb = np.asarray(Image.open(png).convert("RGB"))
     assert rgb.shape[:2] == (600, 800)
     assert rgb.reshape(-1, 3).std(axis=0).max() > 20.0, "uniform screenshot: nothing drawn"
