@@ -184,6 +184,7 @@ def run_one(name: str, k: int, path: str, method: str, max_iters: int) -> dict:
         planning_time=float(plan.timing.get("total", wall)),
         wall_time=wall,
         timing={key: float(v) for key, v in plan.timing.items()},
+        solves={str(key): int(v) for key, v in (plan.options.get("solves") or {}).items()},
         average_point_error=error,
         max_point_error=float(np.max(final.contact_error)) if final is not None else float("nan"),
         initial_error=float(plan.iteration_errors[0]) if len(plan.iteration_errors) else float("nan"),
@@ -337,6 +338,17 @@ def plots(runs: list[dict], out_dir: pathlib.Path) -> list[pathlib.Path]:
     return paths
 
 
+def _finite(x):
+    """NaN/inf -> None, recursively (strict JSON)."""
+    if isinstance(x, float):
+        return x if np.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    return x
+
+
 # ------------------------------------------------------------------------------------------- main
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -384,7 +396,7 @@ def main(argv: list[str] | None = None) -> int:
               "pair_generation_time": gen_times, "total_time": time.perf_counter() - t_start,
               "summary": summary, "paper": {"times": PAPER_TIMES, "overall": PAPER_OVERALL}, "runs": runs}
     json_path = args.out_dir / "paper_objects.json"
-    json_path.write_text(json.dumps(result, indent=1, allow_nan=True))
+    json_path.write_text(json.dumps(_finite(result), indent=1, allow_nan=False))
     table = markdown(summary, env)
     (args.out_dir / "paper_objects.md").write_text(table + "\n")
     print(table)
