@@ -37,8 +37,6 @@ import argparse
 import json
 import os
 import pathlib
-import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -46,37 +44,15 @@ import time
 import casadi as ca
 import numpy as np
 
-from regrasp_casadi import geometry
-from regrasp_casadi.geometry import ObjectModel
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from machine import machine_info  # noqa: E402
+
+from regrasp_casadi import geometry  # noqa: E402
+from regrasp_casadi.geometry import ObjectModel  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 YCB = ROOT.parent / "shared" / "reference" / "ycb"
 YCB_NAMES = ["001_chips_can", "004_sugar_box", "006_mustard_bottle", "011_banana", "021_bleach_cleanser"]
-
-
-def machine_info() -> dict:
-    cpu = platform.processor()
-    try:
-        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True,
-                                check=False).stdout.strip()
-    except OSError:
-        commit = ""
-    from importlib.metadata import version
-
-    import coacd
-    import trimesh
-
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": sys.version.split()[0], "casadi": ca.__version__,
-            "coacd": version("coacd"), "trimesh": trimesh.__version__, "git_commit": commit,
-            "date": time.strftime("%Y-%m-%d %H:%M:%S"), "platform": platform.platform(),
-            "coacd_module": getattr(coacd, "__file__", "")}
 
 
 def timing(obj: ObjectModel) -> dict:
@@ -222,8 +198,9 @@ def main() -> None:
               f"{r['value_grad_vm_us']:.2f} / {r['value_grad_vm_mx_us']:.2f} |")
     print("(* = no decomposition: convex primitive or cache hit; build time is then hull + planes only)")
     info = machine_info()
-    print(f"\n{info['cpu']}, python {info['python']}, casadi {info['casadi']}, coacd {info['coacd']}, "
-          f"trimesh {info['trimesh']}, commit {info['git_commit'][:10]}")
+    v = info["versions"]
+    print(f"\n{info['cpu']}, python {info['python']}, casadi {v['casadi']}, coacd {v['coacd']}, "
+          f"trimesh {v['trimesh']}, commit {info['git_commit'][:10]}")
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"machine": info, "n_samples": args.n, "thresholds": args.thresholds,

@@ -33,18 +33,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import statistics
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 import yourdfpy
 
-from regrasp_casadi.hand import ALLEGRO_RIGHT_URDF, Hand
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from machine import machine_info  # noqa: E402
+
+from regrasp_casadi.hand import ALLEGRO_RIGHT_URDF, Hand  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -76,32 +77,6 @@ def _time_per_call(fn, reps: int, repeats: int = 5) -> float:
             fn()
         out.append((time.perf_counter() - t) / reps)
     return statistics.median(out)
-
-
-def machine_info() -> dict:
-    cpu = "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        commit = "unknown"
-    return {
-        "cpu": cpu,
-        "python": platform.python_version(),
-        "casadi": ca.__version__,
-        "yourdfpy": getattr(yourdfpy, "__version__", "unknown"),
-        "numpy": np.__version__,
-        "platform": platform.platform(),
-        "git_commit": commit,
-    }
 
 
 def main() -> None:
@@ -161,9 +136,9 @@ def main() -> None:
         builds.append(json.loads(res.stdout))
     build = {k: statistics.median(b[k] for b in builds) for k in builds[0]}
 
-    info = machine_info()
+    info = machine_info(("casadi", "numpy", "yourdfpy"))
     print(
-        f"Machine: {info['cpu']}, Python {info['python']}, CasADi {info['casadi']}, "
+        f"Machine: {info['cpu']}, Python {info['python']}, CasADi {info['versions']['casadi']}, "
         f"commit {info['git_commit'][:8]}"
     )
     print()

@@ -92,8 +92,9 @@ def run(problem_path: pathlib.Path, method: str, repeats: int) -> dict:
 
 
 def table(rows: list[dict]) -> str:
-    head = ("| problem | method | status | verified | plan, warm (s) | cold (s) | build (s) | iters | steps "
-            "(gait/repose/final) | avg / max point error (mm) | OPT1 median / p95 (ms) | OPT2 median / p95 (ms) |")
+    head = ("| problem | method | status | verified | plan, warm (s) | cold (s) | build (s) | iters "
+            "| steps (gait/repose/final) | avg / max point error (mm) | OPT1 median / p95 (ms) "
+            "| OPT2 median / p95 (ms) |")
     lines = [head, "|" + "---|" * 12]
     for r in rows:
         lines.append(
@@ -137,8 +138,9 @@ def main(argv: list[str] | None = None) -> None:
     args.out.write_text(json.dumps(out, indent=1))
     print(table(rows))
     for method, s in summary.items():
-        print(f"\n{method}: median plan {s['plan_time_median_s']:.2f} s, OPT1 median {s['opt1_median_ms']:.1f} "
-              f"ms, OPT2 median {s['opt2_median_ms']:.1f} ms, verified {s['verified']}/{s['runs']}")
+        print(f"\n{method}: median plan {s['plan_time_median_s']:.2f} s, OPT1 median "
+              f"{s['opt1_median_ms']:.1f} ms, OPT2 median {s['opt2_median_ms']:.1f} ms, verified "
+              f"{s['verified']}/{s['runs']}")
     m = out["machine"]
     print(f"\n{m['cpu']}, {m['cores']} cores (load {m['load_1min']:.1f}), Python {m['python']}, CasADi "
           f"{m['versions']['casadi']}, commit {m['git_commit'][:10]}{' (dirty)' if m['git_dirty'] else ''}")
