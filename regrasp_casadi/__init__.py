@@ -41,9 +41,9 @@ _LAZY = {
 
 __all__ = ["__version__", "verify", *_LAZY]  # noqa: PLE0604
 
-# `verify` is bound eagerly: a lazily returned function would be replaced by the submodule of the same
-# name as soon as `regrasp_casadi.verify` is imported anywhere.
-from regrasp_casadi.verify import verify  # noqa: E402
+# `verify` is the submodule regrasp_casadi.verify, which is callable (it calls verify.verify): Python
+# binds a package's submodule to the package attribute of the same name, so a function could not stay.
+from regrasp_casadi import verify  # noqa: E402
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.errors import (  # noqa: F401

@@ -22,6 +22,8 @@ At every step it checks:
 from __future__ import annotations
 
 import logging
+import sys
+import types
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -304,3 +306,14 @@ def _report(V: list[Violation], metrics: dict[str, Any]) -> VerifyReport:
     report = VerifyReport(ok=not V, violations=tuple(V), metrics=metrics)
     log.debug("%s", report.summary())
     return report
+
+
+class _CallableModule(types.ModuleType):
+    """This module, callable as `verify(...)`: `from regrasp_casadi import verify` gives the module
+    (Python binds a package's submodule to its attribute of the same name), so calling it must work."""
+
+    def __call__(self, *args, **kwargs) -> VerifyReport:
+        return self.verify(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule

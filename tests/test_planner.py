@@ -102,3 +102,10 @@ def test_gait_pattern_rule(box):
 def test_options_are_recorded(box):
     plan = plan_regrasp(box.grasp0, box.grasp_goal, options=PlannerOptions(eta=0.008), max_iters=1)
     assert plan.options["eta"] == 0.008 and plan.options["max_iters"] == 1
+
+
+def test_package_level_verify_is_the_verifier(box):
+    import regrasp_casadi
+
+    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="svd", max_iters=1)
+    assert regrasp_casadi.verify(plan, box.hand, box.obj) == verify(plan, box.hand, box.obj)
