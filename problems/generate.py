@@ -10,6 +10,10 @@ criterion (e.g. `box_rotate`: the largest object rotation between the two grasps
 
     python problems/generate.py            # rewrites every file below
     python problems/generate.py box_rotate # only that one
+
+The grasps come out of IPOPT solves on the smooth signed distance of `geometry.py`, so a change of that
+model (planes, temperature) gives other — equally valid — files; `tests/test_problems.py` checks every
+shipped file with exact distances, whatever produced it.
 """
 
 from __future__ import annotations

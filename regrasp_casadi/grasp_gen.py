@@ -167,8 +167,7 @@ class _GraspNLP:
     def __init__(self, hand: Hand, obj: ObjectModel, beta: float):
         self.hand, self.obj, self.beta = hand, obj, float(beta)
         n, m = hand.n_joints, len(hand.fingers)
-        self.checked = checked_sphere_indices(hand, beta)
-        self.radii = np.asarray(hand.sphere_radii(None, include_tip=False), float)[self.checked]
+        self.radii = np.asarray(hand.sphere_radii(None, include_tip=False), float)
         k = len(self.radii)
         self.n, self.m, self.k = n, m, k
         # decision variables
@@ -189,7 +188,7 @@ class _GraspNLP:
         t = t0 + dt
         tips_palm = hand.tip_positions_function()(q)
         tips_obj = ca.mtimes(R.T, tips_palm - ca.repmat(t, 1, m))
-        sph_palm = hand.sphere_centers_function(None, include_tip=False)(q)[:, self.checked.tolist()]
+        sph_palm = hand.sphere_centers_function(None, include_tip=False)(q)
         sph_obj = ca.mtimes(R.T, sph_palm - ca.repmat(t, 1, k))
         sd_tip = obj.signed_distance_map_function(m, _TAU)(tips_obj)
         sd_sph = obj.signed_distance_map_function(k, _TAU)(sph_obj)
@@ -339,7 +338,7 @@ def _object_data(hand: Hand, obj: ObjectModel) -> _ObjectData:
     return data
 
 
-def _sample_pose(hand, obj, data, ws, rng, guess) -> NDArray[np.float64]:
+def _sample_pose(obj, data, rng, guess) -> NDArray[np.float64]:
     """Object pose in the palm frame: OBB-aligned orientation with a tilt, centre in the grasp region."""
     if guess is not None:
         T = np.asarray(guess, float)
@@ -436,7 +435,7 @@ def _initial_q(hand, ws, goals_palm, rng) -> NDArray[np.float64]:
 
 # --------------------------------------------------------------------------------------- attempt
 def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance) -> Grasp | None:
-    T0 = _sample_pose(hand, obj, data, ws, rng, guess)
+    T0 = _sample_pose(obj, data, rng, guess)
     idx = _pick_targets(hand, data, ws, T0, rng, avoid, min_mean_distance)
     if idx is None:
         _STATS["no_targets"] += 1
@@ -489,57 +488,9 @@ def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance)
 
 def _non_tip_clear(grasp: Grasp, beta: float) -> bool:
     hand = grasp.hand
-    idx = checked_sphere_indices(hand, beta)
-    c_palm = np.asarray(hand.sphere_centers(grasp.q, None, include_tip=False))[idx]
+    c_palm = np.asarray(hand.sphere_centers(grasp.q, None, include_tip=False))
     d = grasp.obj.exact_signed_distance(transform_points(inv_T(grasp.T_palm_object), c_palm))
-    return bool(np.all(d - hand.sphere_radii(None, include_tip=False)[idx] >= beta))
-
-
-def unavoidable_spheres(hand: Hand, beta: float = 0.001) -> list[str]:
-    """Labels of non-tip spheres that touch the object whenever their finger's tip sphere does.
-
-    A sphere (centre c, radius ρ) rigidly attached to the body of a tip sphere (centre c_t, radius r)
-    stays at least β from every object the tip touches only if some direction u has
-    u·(c − c_t) + ρ + β ≤ r, i.e. iff |c − c_t| ≥ ρ + β − r. Spheres that fail this (e.g. a distal-link
-    sphere covering the rubber tip's cylinder that reaches past the contact sphere) make every fingertip
-    contact a non-tip contact too; they are reported and left out of the clearance checks.
-
-    Args:
-        hand: the hand.
-        beta: clearance, m.
-    """
-    lo, hi = np.asarray(hand.q_lower, float), np.asarray(hand.q_upper, float)
-    dists = []
-    for q in (0.5 * (lo + hi), 0.7 * lo + 0.3 * hi):
-        tips = dict(zip(hand.fingers, np.asarray(hand.tip_positions(q)).reshape(-1, 3), strict=True))
-        centres = np.asarray(hand.sphere_centers(q, None, include_tip=False)).reshape(-1, 3)
-        non_tip = [s for s in hand.spheres if not s.is_tip]
-        far = 1e9 * (1 + len(dists))  # palm spheres: never on a tip's body
-        dists.append(np.array([np.linalg.norm(c - tips[s.finger]) if s.finger in tips else far
-                               for s, c in zip(non_tip, centres, strict=True)]))
-    radii = hand.sphere_radii(None, include_tip=False)
-    rigid = np.abs(dists[0] - dists[1]) < 1e-9
-    bad = rigid & (dists[0] < radii + beta - hand.tip_radius)
-    return [lab for lab, b in zip(hand.sphere_labels(None, include_tip=False), bad, strict=True) if b]
-
-
-_CHECKED: dict[tuple[int, float], tuple[Hand, NDArray[np.int64]]] = {}
-
-
-def checked_sphere_indices(hand: Hand, beta: float = 0.001) -> NDArray[np.int64]:
-    """Indices into the non-tip spheres (`hand.sphere_labels()` order) whose clearance is enforced:
-    all but `unavoidable_spheres` (cached per hand)."""
-    hit = _CHECKED.get((id(hand), float(beta)))
-    if hit is not None and hit[0] is hand:
-        return hit[1]
-    skip = set(unavoidable_spheres(hand, beta))
-    if skip:
-        log.warning("%s: non-tip spheres %s reach past their fingertip contact sphere; no grasp can keep "
-                    "them %.1f mm clear, so they are not checked", hand.name, sorted(skip), beta * 1e3)
-    idx = np.array([i for i, lab in enumerate(hand.sphere_labels(None, include_tip=False))
-                    if lab not in skip], dtype=np.int64)
-    _CHECKED[(id(hand), float(beta))] = (hand, idx)
-    return idx
+    return bool(np.all(d - hand.sphere_radii(None, include_tip=False) >= beta))
 
 
 # ------------------------------------------------------------------------------------ public API

@@ -51,21 +51,6 @@ def force_closure_lp(contacts, normals, mu=0.5, center=None, length=None) -> boo
     return bool(res.status == 0 and -res.fun > 1e-9)
 
 
-def tip_dominated_spheres(hand) -> set[str]:
-    """Labels of non-tip spheres rigidly fixed to a tip's body that reach past the tip sphere in every
-    direction (|c − c_tip| < ρ − r_tip): no tip contact can leave them clear of the object."""
-    q = 0.5 * (np.asarray(hand.q_lower) + np.asarray(hand.q_upper))
-    tips = np.asarray(hand.tip_positions(q)).reshape(-1, 3)
-    centres = np.asarray(hand.sphere_centers(q)).reshape(-1, 3)
-    radii = hand.sphere_radii()
-    out = set()
-    for label, c, rho in zip(hand.sphere_labels(), centres, radii, strict=True):
-        d = np.min(np.linalg.norm(tips - c, axis=1))
-        if d < rho - hand.tip_radius:
-            out.add(label)
-    return out
-
-
 def exact_checks(hand, obj, q, T_palm_object):
     """(tip gap (m,) = exact distance of tip centres − r_tip, clearance (k,) of non-tip spheres, labels)."""
     T_object_palm = inv_T(np.asarray(T_palm_object, float))
