@@ -19,7 +19,13 @@ does the same with the meshes of `../shared/reference/ycb/`:
 
 Planning time is `plan.timing["total"]` (NLP builds included; NLPs are cached per worker process and
 object, so the first plan on an object pays the builds). Measures and records; asserts nothing.
-The latest table, with its machine and versions, is in `benchmarks/README.md`.
+The latest per-object table, with its machine and versions, is in `benchmarks/README.md`. A
+representative summary (commit 6727f88; Intel Xeon VM, 2 cores, `--workers 2`; Python 3.11.7, CasADi
+3.8.2, IPOPT 3.14.19 + MUMPS):
+
+    method  runs  verified  success  median time (paper)  max time  median it. (paper)  error median/max
+    SVD     25    24        23       6.3 s (75 s)         24.6 s    8 (44)              1.13 / 6.67 mm
+    SD      25    25        25       6.22 s (729 s)       31.7 s    8 (29)              0.61 / 2.81 mm
 """
 
 from __future__ import annotations
@@ -94,6 +100,7 @@ def environment(workers: int) -> dict:
         "host": socket.gethostname(),
         "cpu": cpu,
         "cores": os.cpu_count(),
+        "load_1min": os.getloadavg()[0],
         "workers": workers,
         "python": platform.python_version(),
         "casadi": ca.__version__,
