@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from regrasp_casadi import solver as _solver
 from regrasp_casadi import terms
+from regrasp_casadi.geometry import DEFAULT_TAU, LOCAL_PIECES, LOCAL_PLANES
 
 if TYPE_CHECKING:
     from regrasp_casadi.geometry import ObjectModel
@@ -87,12 +88,15 @@ class FingerGaitNLP:
     `FK_r` is the centre of the fingertip contact sphere (radius ρ), so the paper's point-contact cost
     ``||f_{r,g} − FK_r||²`` becomes the distance to the goal tip centre ``c_{r,g} = f_{r,g} + ρ n(f_{r,g})``
     (n the outward surface normal); `L_r` are the finger's other collision spheres (radius ρ_l); SD is the
-    smooth signed distance of `ObjectModel`. The offsets δ (parameters) make contacts exact: after a
-    solve, δ = SD_exact − SD_smooth at the solution and the NLP is solved again (warm started) until the
-    tip sits on the real mesh within `surface_tol`.
+    smooth signed distance of `ObjectModel`: for the tip, from the planes near its path
+    (`ObjectModel.local_planes`, passed as parameters, so the NLP does not grow with the mesh); for the
+    other spheres, from the coarse pieces (`clearance_distance_function`). The offsets δ (parameters)
+    make contacts exact: after a solve, δ = SD_exact − SD_smooth at the solution and the NLP is solved
+    again (warm started) until the tip sits on the real mesh within `surface_tol`.
 
     Decision variables: the finger's joints (n_r,). Parameters: the full joint vector (n,), the object
-    pose (R column-major (9,), t (3,)), the goal tip centre (3,) object frame, δ_tip (1,), δ_l (k,).
+    pose (R column-major (9,), t (3,)), the goal tip centre (3,) object frame, δ_tip (1,), δ_l (k,), the
+    tip's local planes (normals, offsets).
     The objective is in cm² and the distance constraints in mm, for IPOPT's tolerances.
     """
 
@@ -111,8 +115,8 @@ class FingerGaitNLP:
         radii = np.asarray(hand.sphere_radii(finger), dtype=float)
         k = radii.size
         self._radii = radii
-        sd = obj.signed_distance_function(o.tau)
         sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
+        tau = float(DEFAULT_TAU if o.tau is None else o.tau)
 
         # decision variables
         q_r = ca.SX.sym("q_r", idx.size)
@@ -123,7 +127,9 @@ class FingerGaitNLP:
         c_goal = ca.SX.sym("p_object_tip_goal", 3)
         delta_tip = ca.SX.sym("delta_tip", 1)
         delta_l = ca.SX.sym("delta_l", k)
-        p = ca.vertcat(q_all, R_vec, t, c_goal, delta_tip, delta_l)
+        N_tip = ca.SX.sym("normals_tip", LOCAL_PIECES * LOCAL_PLANES * 3)  # local planes near the tip
+        h_tip = ca.SX.sym("offsets_tip", LOCAL_PIECES * LOCAL_PLANES)
+        p = ca.vertcat(q_all, R_vec, t, c_goal, delta_tip, delta_l, N_tip, h_tip)
         R = ca.reshape(R_vec, 3, 3)
 
         q_full = terms.substitute_joints(q_all, idx, q_r)
@@ -137,7 +143,7 @@ class FingerGaitNLP:
         else:
             s_obj = ca.SX(3, 0)
             sd_l = ca.SX(0, 1)
-        sd_tip = sd(c_obj)
+        sd_tip = terms.local_signed_distance(N_tip, h_tip, c_obj, LOCAL_PIECES, tau)
 
         # objective
         f = _CM2 * ca.sumsqr(c_obj - c_goal)
@@ -171,8 +177,9 @@ class FingerGaitNLP:
         """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""
         self._lam = None
 
-    def _params(self, q, T, c_goal, delta_tip, delta_l):
-        return np.concatenate([q, T[:3, :3].ravel(order="F"), T[:3, 3], c_goal, [delta_tip], delta_l])
+    def _params(self, q, T, c_goal, delta_tip, delta_l, planes):
+        return np.concatenate([q, T[:3, :3].ravel(order="F"), T[:3, 3], c_goal, [delta_tip], delta_l,
+                               planes[0].ravel(), planes[1].ravel()])
 
     def _exact(self, q_r, p):
         c_obj, s_obj, sd_tip, sd_l = self._points(q_r, p)
@@ -189,14 +196,19 @@ class FingerGaitNLP:
         T = np.asarray(T_palm_object, dtype=float)
         c_goal = np.asarray(p_object_tip_goal, dtype=float).reshape(3)
         x0 = q[self._idx]
-        p0 = self._params(q, T, c_goal, 0.0, np.zeros(self._k))
+        r = self.hand.fingers.index(self.finger)
+        c0 = (self.hand.tip_positions(q)[r] - T[:3, 3]) @ T[:3, :3]  # tip centre, object frame
+        reach = min(1.0, 1.5 * o.eta / max(float(np.linalg.norm(c_goal - c0)), 1e-12))
+        selection = [c0 + s * reach * (c_goal - c0) for s in (0.0, 0.25, 0.5, 0.75, 1.0)]
+        planes = self.obj.local_planes(selection)  # the planes that matter along the way
+        p0 = self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes)
         _, exact, smooth = self._exact(x0, p0)
         delta = exact - smooth  # offsets that make the smooth model exact at the start
         t_solve, iters, solves = 0.0, 0, 0
         x = x0
         res = None
         for _ in range(o.max_corrections + 1):
-            p = self._params(q, T, c_goal, delta[0], delta[1:])
+            p = self._params(q, T, c_goal, delta[0], delta[1:], planes)
             lam_x, lam_g = self._lam if self._lam is not None else (None, None)
             res = _solver.solve(self._solver, x0=x, p=p, lbx=self._lbx, ubx=self._ubx, lbg=self._lbg,
                                 ubg=self._ubg, lam_x0=lam_x, lam_g0=lam_g)
@@ -213,10 +225,13 @@ class FingerGaitNLP:
             clear_ok = self._k == 0 or np.min(exact[1:] - self._radii) >= 0.5 * o.beta
             if surface_error <= o.surface_tol and clear_ok:
                 break
+            selection.append(c_obj)  # re-select the planes with the solution point, then re-solve
+            planes = self.obj.local_planes(selection)
+            _, exact, smooth = self._exact(x, self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes))
             delta = exact - smooth
         q_new = q.copy()
         q_new[self._idx] = x
-        c_obj, exact, _ = self._exact(x, self._params(q, T, c_goal, 0.0, np.zeros(self._k)))
+        c_obj, exact, _ = self._exact(x, self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes))
         surface_error = float(abs(exact[0] - self.hand.tip_radius))
         min_clear = float(np.min(exact[1:] - self._radii)) if self._k else float("inf")
         step = np.linalg.norm(self.hand.tip_positions(q_new)[self.hand.fingers.index(self.finger)]

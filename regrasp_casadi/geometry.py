@@ -65,6 +65,8 @@ DEFAULT_THRESHOLD = 0.05
 """coacd concavity threshold (smaller: more, finer pieces)."""
 DEFAULT_MAX_PLANES = 64
 DEFAULT_EDGE_PLANES = 96  # extra edge/vertex support planes per piece (see add_edge_planes)
+LOCAL_PIECES = 2  # pieces in a local plane set (see ObjectModel.local_planes)
+LOCAL_PLANES = 16  # planes per piece in a local plane set
 """Cap on the planes of one convex piece after simplification (bounds the expression size)."""
 DEFAULT_MAX_PIECES = 16
 """Cap on the number of convex pieces coacd may return (its `max_convex_hull`)."""
@@ -532,6 +534,37 @@ class ObjectModel:
             f = ca.Function(f"sd_coarse_{self.name}", [p], [d], ["p_object"], ["d"])
             self._sd_functions[key] = f
         return f
+
+    def local_planes(self, points, n_pieces: int = LOCAL_PIECES,
+                     k: int = LOCAL_PLANES) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The planes that decide the distance near `points`: a fixed-size set for NLP parameters.
+
+        The `n_pieces` pieces nearest to the points (smallest hard distance) and, of each, the `k` planes
+        with the largest values n·p − h over the points (the planes that are the max there). Missing
+        pieces or planes repeat the first one (a repeated plane only adds τ·log 2 to the smooth value,
+        which the exact-distance offsets of the NLPs absorb). With these planes,
+        ``terms.local_signed_distance`` equals the full model's hard distance at the points and is a
+        lower bound of it elsewhere, so an NLP whose point moves re-selects them at its solution.
+
+        Args:
+            points: (s, 3) points, object frame, m (e.g. a tip centre and its goal).
+            n_pieces: pieces kept.
+            k: planes kept per piece.
+
+        Returns:
+            normals (n_pieces, k, 3) and offsets (n_pieces, k), object frame, m.
+        """
+        pts = np.atleast_2d(np.asarray(points, dtype=float))
+        values = [pts @ pc.normals.T - pc.offsets for pc in self.pieces]  # (s, k_c) each
+        nearest = np.argsort([float(v.max(axis=1).min()) for v in values], kind="stable")[:n_pieces]
+        nearest = np.resize(nearest, n_pieces)  # repeat when the object has fewer pieces
+        N = np.empty((n_pieces, k, 3))
+        H = np.empty((n_pieces, k))
+        for j, c in enumerate(nearest):
+            top = np.argsort(-values[c].max(axis=0), kind="stable")[:k]
+            top = np.resize(top, k)
+            N[j], H[j] = self.pieces[c].normals[top], self.pieces[c].offsets[top]
+        return N, H
 
     def signed_distance_map_function(self, k: int, tau: float | None = None) -> ca.Function:
         """Vectorised smooth distance: points (3, k), object frame -> d (1, k), m (cached)."""

@@ -20,6 +20,7 @@ from scipy.spatial import ConvexHull
 
 from regrasp_casadi import solver as _solver
 from regrasp_casadi import terms
+from regrasp_casadi.geometry import DEFAULT_TAU, LOCAL_PIECES, LOCAL_PLANES
 from regrasp_casadi.transforms import make_T
 
 if TYPE_CHECKING:
@@ -149,7 +150,8 @@ class InGraspNLP:
 
     The tip-on-surface equality is an addition to the paper's OPT2: the relaxed rigidity alone lets a
     tip drift off the surface by ~0.1–1 mm when other constraints are active. A trust region bounds |Δt|
-    and |w| per reposing. δ are exact-distance offsets (see FingerGaitNLP).
+    and |w| per reposing. δ are exact-distance offsets (see FingerGaitNLP); the tips' distances use the
+    local planes at their contacts (parameters), the other spheres the coarse pieces.
     """
 
     _n_builds = 0
@@ -165,8 +167,9 @@ class InGraspNLP:
         radii = np.asarray(hand.sphere_radii(None), dtype=float)
         k = radii.size
         self._radii, self._k, self._n, self._m = radii, k, n, m
-        sd = obj.signed_distance_function(o.tau)
         sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
+        tau = float(DEFAULT_TAU if o.tau is None else o.tau)
+        n_planes = LOCAL_PIECES * LOCAL_PLANES
         ell_mm = _MM * 0.5 * float(np.linalg.norm(obj.mesh.extents))
 
         # decision variables
@@ -180,6 +183,8 @@ class InGraspNLP:
         c_tips = ca.SX.sym("p_object_tips", 3, m)
         R_tips = ca.SX.sym("R_object_tips", 9, m)
         delta_l = ca.SX.sym("delta_l", k + m)  # exact-distance offsets: non-tip spheres, then tips
+        N_tips = ca.SX.sym("normals_tips", 3 * n_planes, m)  # local planes near each tip
+        h_tips = ca.SX.sym("offsets_tips", n_planes, m)
         if method == "pose":
             R_star_vec = ca.SX.sym("R_target", 9)
             t_star = ca.SX.sym("t_target", 3)
@@ -187,7 +192,8 @@ class InGraspNLP:
         else:
             g_tips = ca.SX.sym("p_object_tips_goal", 3, m)
             target = ca.vec(g_tips)
-        p = ca.vertcat(R0_vec, t0, ca.vec(c_tips), ca.vec(R_tips), delta_l, target)
+        p = ca.vertcat(R0_vec, t0, ca.vec(c_tips), ca.vec(R_tips), delta_l, ca.vec(N_tips), ca.vec(h_tips),
+                       target)
         R, t = terms.pose_from_params(ca.reshape(R0_vec, 3, 3), t0, dt, w)
 
         # objective
@@ -211,8 +217,9 @@ class InGraspNLP:
         f = e_des + o.k_pos * e_pos + o.k_orient * e_or
         # constraints: non-tip spheres keep β; the tips stay on the surface
         s_obj = terms.to_object_frame(R, t, ca.horzcat(hand.sphere_centers_function(None)(q), tips_palm))
-        sd_l = ca.vertcat(terms.smooth_signed_distances(sd_coarse, s_obj[:, :k]),
-                          terms.smooth_signed_distances(sd, s_obj[:, k:]))
+        sd_tips = [terms.local_signed_distance(N_tips[:, r], h_tips[:, r], s_obj[:, k + r], LOCAL_PIECES, tau)
+                   for r in range(m)]
+        sd_l = ca.vertcat(terms.smooth_signed_distances(sd_coarse, s_obj[:, :k]), *sd_tips)
         radii_all = np.concatenate([radii, np.full(m, hand.tip_radius)])
         g = _MM * (sd_l + delta_l - ca.DM(radii_all))
         # bounds
@@ -267,9 +274,14 @@ class InGraspNLP:
                 raise ValueError("method 'sd' needs p_object_tips_goal")
             target = np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T.ravel(order="F")
 
+        planes = [self.obj.local_planes(c[None]) for c in c_tips]  # the tips stay put on the object
+        N_tips = np.stack([N.ravel() for N, _ in planes], axis=1)
+        h_tips = np.stack([h.ravel() for _, h in planes], axis=1)
+
         def params(delta):
             return np.concatenate([T0[:3, :3].ravel(order="F"), T0[:3, 3], c_tips.T.ravel(order="F"),
-                                   R_tips.ravel(order="F"), delta, target])
+                                   R_tips.ravel(order="F"), delta, N_tips.ravel(order="F"),
+                                   h_tips.ravel(order="F"), target])
 
         x = np.concatenate([q, np.zeros(6)])
         n_pts = self._k + self._m

@@ -16,6 +16,7 @@ __all__ = [
     "to_object_frame",
     "smooth_signed_distances",
     "hull_signed_distance",
+    "local_signed_distance",
     "softplus",
     "rotation_error_sq",
     "substitute_joints",
@@ -60,6 +61,25 @@ def hull_signed_distance(normals: NDArray[np.float64], offsets: NDArray[np.float
     s = ca.DM(normals) @ p - ca.DM(offsets)
     m = ca.mmax(s)
     return m + tau * ca.log(ca.sum1(ca.exp((s - m) / tau)))
+
+
+def local_signed_distance(normals: ca.SX, offsets: ca.SX, p: ca.SX, n_pieces: int, tau: float) -> ca.SX:
+    """Smooth signed distance (1,) of `p` (3,) from local plane sets passed as parameters.
+
+    `normals` is (n_pieces·k·3,) and `offsets` (n_pieces·k,), laid out as `ObjectModel.local_planes`
+    returns them (C order). Per piece τ·LSE((n_i·p − h_i)/τ), then a smooth minimum over the pieces:
+    the same model as `ObjectModel.signed_distance_function`, restricted to the planes near `p`.
+    """
+    k = offsets.shape[0] // n_pieces
+    d_pieces = []
+    for j in range(n_pieces):
+        N = ca.reshape(normals[3 * k * j: 3 * k * (j + 1)], 3, k).T  # (k, 3): rows are normals
+        y = (N @ p - offsets[k * j: k * (j + 1)]) / tau
+        m = ca.mmax(y)
+        d_pieces.append(m + ca.log(ca.sum1(ca.exp(y - m))))
+    z = -ca.vertcat(*d_pieces)
+    m = ca.mmax(z)
+    return -tau * (m + ca.log(ca.sum1(ca.exp(z - m))))
 
 
 def softplus(x: ca.SX, tau: float) -> ca.SX:
