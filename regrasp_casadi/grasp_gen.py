@@ -13,17 +13,21 @@ How (one attempt): sample an object pose in front of the palm (an orientation al
 oriented bounding box plus a random tilt, a random position where the fingertip workspaces reach it),
 pick one contact target per finger among sampled surface points that the finger can reach (tip
 workspace samples over the joint limits), with the three fingers on one side and the thumb opposite
-them, then solve with IPOPT
+them, keeping only target sets that are themselves in force closure, then solve with IPOPT
 
     min_{q, δt, a}  Σ_r ||R(a)ᵀ(FK_r(q) − t) − (x_r + r_tip n_r)||² / s² + w_q ||q − q_ref||²
                     + w_t ||δt||² / s² + w_a ||a||²
     s.t.  sd(R(a)ᵀ(FK_r(q) − t)) + δ_r = r_tip                       (each fingertip r)
-          sd(R(a)ᵀ(c_k(q) − t)) + δ_k − ρ_k ≥ β + margin             (each non-tip sphere k)
+          sd_c(R(a)ᵀ(c_k(q) − t)) + δ_k − ρ_k ≥ β + margin           (each non-tip sphere k)
           q_lower ≤ q ≤ q_upper
 
-with t = t₀ + δt, R(a) = R₀·Cay(a) (Cayley map), sd the smooth signed distance of `ObjectModel` and
-δ = d_exact − sd at the previous solution (a local correction, re-solved until the exact distances hold).
-The NLP is built once per (hand, object, β) and re-solved from different seeds. Same seed → same grasps.
+with t = t₀ + δt, R(a) = R₀·Cay(a) (Cayley map), sd the smooth signed distance of `ObjectModel`
+(τ = 2 mm), sd_c its coarse clearance variant (≤ 16 planes per piece) and δ = d_exact − sd at the previous
+solution (a local correction). Later rounds re-centre the pose prior and q_ref on the solution with large
+weights (a proximal step) and re-solve; once the spheres are clear and the tips within 2 mm, Newton
+steps on the exact distance (each finger's tip moved along its contact normal by a damped least-norm
+joint step) put the tips on the surface. The NLP is built once per (hand, object, β) and re-solved from
+different seeds. Same seed → same grasps (for the same hand and object models).
 
     >>> grasps = generate_grasps(Hand.allegro_right(), ObjectModel.box((0.06, 0.06, 0.12)), n=3, seed=0)
     >>> pairs = generate_regrasp_pairs(hand, obj, n_pairs=2, seed=0)
@@ -67,6 +71,7 @@ _MARGIN = 5e-4  # extra clearance demanded of the smooth distance of non-tip sph
 _SCALE = 0.01  # length scale of the objective, m
 _MIN_QUALITY = 1e-3  # force-closure margin a generated grasp must exceed
 _CORRECTION_ROUNDS = 5
+_CLEARANCE_PLANES = 16  # planes per piece of the coarse distance used for the non-tip spheres
 _TAU = 2e-3  # smoothing temperature of the NLP's distance, m (the exact-minus-smooth offset removes its bias)
 
 
@@ -191,7 +196,7 @@ class _GraspNLP:
         sph_palm = hand.sphere_centers_function(None, include_tip=False)(q)
         sph_obj = ca.mtimes(R.T, sph_palm - ca.repmat(t, 1, k))
         sd_tip = obj.signed_distance_map_function(m, _TAU)(tips_obj)
-        sd_sph = obj.signed_distance_map_function(k, _TAU)(sph_obj)
+        sd_sph = obj.clearance_distance_function(_CLEARANCE_PLANES, _TAU).map(k)(sph_obj)
         # objective
         f = (weights[0] * ca.sumsqr(tips_obj - targets) / _SCALE**2
              + weights[1] * ca.sumsqr(q - q_ref)
@@ -315,6 +320,7 @@ class _ObjectData:
     points: NDArray[np.float64]  # (s, 3) object frame
     normals: NDArray[np.float64]
     com: NDArray[np.float64]
+    length: float  # bounding radius about the centre of mass, m (torque scale of the quality)
     R_obb: NDArray[np.float64]  # object <- OBB axes
     palm_centers: NDArray[np.float64]  # (p, 3) palm-fixed sphere centres, palm frame
     palm_radii: NDArray[np.float64]
@@ -332,8 +338,9 @@ def _object_data(hand: Hand, obj: ObjectModel) -> _ObjectData:
     fixed = [i for i, s in enumerate(hand.spheres) if s.finger is None and not s.is_tip]
     centers = np.array([hand.spheres[i].center_link for i in fixed]).reshape(-1, 3)
     radii = np.array([hand.spheres[i].radius for i in fixed])
-    data = _ObjectData(np.asarray(pts), np.asarray(nrm), np.asarray(obj.mesh.center_mass, float),
-                       np.asarray(obb)[:3, :3], centers, radii)
+    com = np.asarray(obj.mesh.center_mass, float)
+    length = float(np.max(np.linalg.norm(np.asarray(obj.mesh.vertices) - com, axis=1)))
+    data = _ObjectData(np.asarray(pts), np.asarray(nrm), com, length, np.asarray(obb)[:3, :3], centers, radii)
     _OBJECT_DATA[(id(hand), id(obj))] = (obj, data)
     return data
 
@@ -363,10 +370,12 @@ def _sample_pose(obj, data, rng, guess) -> NDArray[np.float64]:
     return T
 
 
-def _pick_targets(hand, data, ws, T, rng, avoid, min_mean_distance, tries: int = 8):
+def _pick_targets(hand, data, ws, T, rng, avoid, min_mean_distance, mu, tries: int = 12):
+    """Target indices whose own contacts (surface points, face normals) are in force closure."""
     for _ in range(tries):
         idx = _pick_targets_once(hand, data, ws, T, rng, avoid, min_mean_distance)
-        if idx is not None:
+        if idx is not None and force_closure_quality(data.points[idx], data.normals[idx], mu, data.com,
+                                                     data.length) > 2 * _MIN_QUALITY:
             return idx
     return None
 
@@ -436,7 +445,7 @@ def _initial_q(hand, ws, goals_palm, rng) -> NDArray[np.float64]:
 # --------------------------------------------------------------------------------------- attempt
 def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance) -> Grasp | None:
     T0 = _sample_pose(obj, data, rng, guess)
-    idx = _pick_targets(hand, data, ws, T0, rng, avoid, min_mean_distance)
+    idx = _pick_targets(hand, data, ws, T0, rng, avoid, min_mean_distance, mu)
     if idx is None:
         _STATS["no_targets"] += 1
         return None
@@ -447,9 +456,10 @@ def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance)
     m, k = nlp.m, nlp.k
     delta_tip, delta_sph = np.zeros(m), np.zeros(k)
     weights = np.array([1.0, 0.1, 1.0, 10.0])
+    q_ref = q0
     x = np.concatenate([q0, np.zeros(6)])
     for rnd in range(_CORRECTION_ROUNDS):
-        p = nlp.pack(R0, t0, targets_obj, delta_tip, delta_sph, q0, weights)
+        p = nlp.pack(R0, t0, targets_obj, delta_tip, delta_sph, q_ref, weights)
         x, status = nlp.solve(x, p)
         if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
             log.debug("grasp NLP round %d: %s", rnd, status)
@@ -459,11 +469,26 @@ def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance)
         ex_tip = obj.exact_signed_distance(tips_obj.T)
         ex_sph = obj.exact_signed_distance(sph_obj.T)
         tip_ok = np.all(np.abs(ex_tip - r) <= 0.5 * SURFACE_TOL)
-        sph_ok = np.all(ex_sph - nlp.radii >= nlp.beta)
+        sph_ok = np.all(ex_sph - nlp.radii >= nlp.beta + 2e-4)
+        if sph_ok and not tip_ok and np.max(np.abs(ex_tip - r)) < 2e-3:
+            q_pol = _polish_tips(hand, obj, x[: nlp.n], nlp.pose(x, R0, t0))
+            if q_pol is not None:
+                x = np.concatenate([q_pol, x[nlp.n:]])
+                tip_ok = True
         if tip_ok and sph_ok:
             break
+        log.debug("round %d: tip error %.3g mm, min clearance %.3g mm", rnd, 1e3 * np.max(np.abs(ex_tip - r)),
+                  1e3 * np.min(ex_sph - nlp.radii))
         delta_tip = ex_tip - sd_tip.ravel()
-        delta_sph = np.minimum(delta_sph, np.minimum(0.0, ex_sph - sd_sph.ravel()))
+        # spheres near the object get the exact-minus-smooth offset (either sign); far ones only tighten
+        near = ex_sph - nlp.radii < 0.005
+        delta_sph = np.where(near, ex_sph - sd_sph.ravel(), np.minimum(delta_sph, ex_sph - sd_sph.ravel()))
+        # polish: re-centre the pose prior on the solution and pull q towards it (a proximal term), so
+        # the tips stay where the offsets were measured and the correction converges
+        T_cur = nlp.pose(x, R0, t0)
+        R0, t0, q_ref = T_cur[:3, :3], T_cur[:3, 3], x[: nlp.n].copy()
+        x = np.concatenate([q_ref, np.zeros(6)])
+        weights = np.array([0.01, 10.0, 10.0, 100.0])
     else:
         _STATS["not_exact"] += 1
         return None
@@ -484,6 +509,30 @@ def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance)
         return None
     _STATS["ok"] += 1
     return grasp
+
+
+def _polish_tips(hand: Hand, obj: ObjectModel, q, T_palm_object, iters: int = 6):
+    """Newton steps on the exact distance: move each tip centre along its contact normal by
+    −(d_exact − r_tip) with a damped least-norm step of its finger's joints. Returns q, or None if the
+    tips do not reach `SURFACE_TOL` / 2 within joint limits."""
+    q = np.array(q, float)
+    T_object_palm = inv_T(T_palm_object)
+    R = np.asarray(T_palm_object)[:3, :3]
+    for _ in range(iters):
+        tips = transform_points(T_object_palm, np.asarray(hand.tip_positions(q)).reshape(-1, 3))
+        closest, d = obj.closest_points(tips)
+        err = np.asarray(d) - hand.tip_radius
+        if np.max(np.abs(err)) <= 0.5 * SURFACE_TOL:
+            return q
+        for i, f in enumerate(hand.fingers):
+            v = tips[i] - closest[i]
+            nv = np.linalg.norm(v)
+            n_obj = v / nv if nv > 1e-9 else obj.surface_normals(tips[i:i + 1])[0]
+            idx = np.asarray(hand.finger_joints[f])
+            J = np.asarray(hand.tip_jacobian(q, f))[:, idx]
+            dq = J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(3), -err[i] * (R @ n_obj))
+            q[idx] = np.clip(q[idx] + dq, np.asarray(hand.q_lower)[idx], np.asarray(hand.q_upper)[idx])
+    return None
 
 
 def _non_tip_clear(grasp: Grasp, beta: float) -> bool:
