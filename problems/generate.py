@@ -38,6 +38,11 @@ def _rotation(pair) -> float:
     return rotation_angle(a.T_palm_object[:3, :3], b.T_palm_object[:3, :3])
 
 
+def _rotation_up_to_25deg(pair) -> float:
+    r = _rotation(pair)
+    return r if r <= np.radians(25.0) else -r
+
+
 def _distance(pair) -> float:
     a, b = pair
     return float(np.mean(np.linalg.norm(a.contacts_object - b.contacts_object, axis=1)))
@@ -46,9 +51,9 @@ def _distance(pair) -> float:
 # name -> (object factory, seed, candidate pairs, key to maximise (or minimise if negated), description)
 PROBLEMS = {
     "box_rotate": (
-        lambda: ObjectModel.box((0.05, 0.07, 0.12)), 1, 3, _rotation,
-        "Box 0.05 x 0.07 x 0.12 m; the desired grasp turns the object (largest rotation of 3 seeded "
-        "candidates) and moves every fingertip to new contacts (mean >= 3 cm away)."),
+        lambda: ObjectModel.box((0.05, 0.07, 0.12)), 1, 6, _rotation_up_to_25deg,
+        "Box 0.05 x 0.07 x 0.12 m; the desired grasp turns the object (the largest rotation up to 25 deg "
+        "of 6 seeded candidates) and moves every fingertip to new contacts (mean >= 3 cm away)."),
     "box_shift": (
         lambda: ObjectModel.box((0.05, 0.07, 0.12)), 2, 3, lambda p: -_distance(p),
         "Box 0.05 x 0.07 x 0.12 m; fingertips relocated by the smallest mean distance >= 3 cm of 3 "
