@@ -181,8 +181,8 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     Returns:
         A `Plan` whose `status` says why it stopped: "converged", "iteration_limit", "stalled" (no
         progress for `stall_limit` iterations), "solver_failure" (with the step and IPOPT's status in
-        `status_detail`) or "invalid_input". A failed solve never
-        raises: the plan ends with the steps so far.
+        `status_detail`) or "invalid_input". A failed solve never raises: the plan ends with the steps
+        so far.
     """
     t_start = time.perf_counter()
     options = replace(options or PlannerOptions(), **overrides)
@@ -219,17 +219,15 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     step = run.add_step("initial", None, q, T, "", 0.0)
     run.gait = options.gait or gait_pattern(hand, step.contacts_object, goal_contacts)
     gait_nlps = {f: run.gait_nlp(f) for f in run.gait}
-    repose_nlp = run.in_grasp_nlp("pose" if options.method == "svd" else "sd")
-    final_nlp = run.in_grasp_nlp("pose") if options.final_move else None
-    for nlp in [*gait_nlps.values(), repose_nlp, final_nlp]:
-        if nlp is not None:
-            nlp.reset()  # same input, same plan: no warm start carried over from another plan
+    pose_nlp = run.in_grasp_nlp("pose")  # SVD reposing, stall escape and final moves
+    repose_nlp = pose_nlp if options.method == "svd" else run.in_grasp_nlp("sd")
+    for nlp in [*gait_nlps.values(), pose_nlp, repose_nlp]:
+        nlp.reset()  # same input, same plan: no warm start carried over from another plan
     errors = [float(np.mean(step.contact_error))]
     err = float(np.max(step.contact_error))
     n = 0
     failures: list[str] = []  # failed solves of the current iteration ("<what>: IPOPT <status>")
     best_err, stalled = err, 0  # progress watch: iterations since the largest error last dropped
-    final_pose_nlp = final_nlp or run.in_grasp_nlp("pose")
     while err > options.zeta and n < options.max_iters:
         failures.clear()
         n_steps_before = len(run.steps)
@@ -256,7 +254,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
             tips = run.tips_object(q, T)
             nlp = repose_nlp
             if stalled >= options.stall_escape:  # escape: repose towards the desired object pose
-                nlp, target = final_pose_nlp, {"T_target": goal_T}
+                nlp, target = pose_nlp, {"T_target": goal_T}
             elif options.method == "svd":
                 T_rel = kabsch(run.steps[-1].contacts_object, goal_contacts)  # X_goal ≈ T_rel · X
                 target = {"T_target": T @ inv_T(T_rel)}  # so that o'·X_goal ≈ o·X
@@ -287,11 +285,11 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
                 return make_plan(run, "stalled", f"largest contact error {err * 1e3:.2f} mm > ζ: no progress "
                                  f"in the last {stalled} iterations", n, errors)
     converged = err <= options.zeta
-    if final_nlp is not None and converged:
+    if options.final_move and converged:
         for _ in range(options.max_final_moves):
             if _pose_distance(T, goal_T, obj) <= options.final_pose_tol:
                 break
-            res3 = final_nlp.solve(q, T, run.tips_object(q, T), T_target=goal_T)
+            res3 = pose_nlp.solve(q, T, run.tips_object(q, T), T_target=goal_T)
             run.timing["opt2"] += res3.solve_time
             run.solves["opt2"] += 1
             if not res3.success:
