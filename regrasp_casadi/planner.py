@@ -61,12 +61,13 @@ class PlannerOptions:
     """Largest number of final in-grasp moves (each bounded by the OPT2 trust region)."""
     final_pose_tol: float = 1e-3
     """Stop the final moves when the object is this close to the desired pose (m, and rad × 0.1 m)."""
-    stall_tol: float = 1e-4
-    """An iteration makes progress when the largest contact error drops by more than this, m."""
+    stall_tol: float = 1e-3
+    """An iteration makes progress when the largest contact error drops by more than this, m (a gait
+    moves a tip up to η = 10 mm: less than 1 mm means the fingers are blocked where they are)."""
     stall_escape: int = 2
     """After this many iterations without progress, reposings move towards the desired object pose
     (an addition to the paper: the desired grasp is feasible there, so its contacts become reachable)."""
-    stall_limit: int = 8
+    stall_limit: int = 10
     """After this many iterations without progress the plan stops with status "stalled"."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
