@@ -42,12 +42,13 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree  # noqa: F401
 
 from regrasp_casadi.errors import GraspError
 from regrasp_casadi.geometry import ObjectModel
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.hand import Hand
+from regrasp_casadi.stability import force_closure_quality
 from regrasp_casadi.transforms import exp_so3, inv_T, make_T, transform_points
 
 __all__ = [
@@ -62,7 +63,6 @@ log = logging.getLogger(__name__)
 
 SURFACE_TOL = 1e-4
 """Allowed |exact distance of a tip centre − tip radius| of a generated grasp, m (0.1 mm)."""
-_FRICTION_EDGES = 8
 _N_WORKSPACE = 20000  # joint samples for the fingertip workspaces
 _N_SURFACE = 3000  # surface samples for contact targets
 _REACH_TOL = 0.006  # a target is reachable if a workspace sample lies within this distance, m
@@ -76,62 +76,6 @@ _TAU = 2e-3  # smoothing temperature of the NLP's distance, m (the exact-minus-s
 
 
 # ------------------------------------------------------------------------------------ force closure
-def force_closure_quality(
-    contacts: NDArray[np.float64],
-    normals: NDArray[np.float64],
-    mu: float = 0.5,
-    center: NDArray[np.float64] | None = None,
-    length: float | None = None,
-    n_edges: int = _FRICTION_EDGES,
-) -> float:
-    """Ferrari–Canny ε of frictional point contacts (linearised cones); > 0 ⇔ force closure.
-
-    Each contact i pushes along the inward normal −n_i within a Coulomb cone of half-angle atan μ,
-    linearised by `n_edges` edge forces f_ij = −n_i + μ(cos φ_j t1_i + sin φ_j t2_i). Their wrenches
-    w_ij = [f_ij; (c_i − center) × f_ij / L] are scaled by the characteristic length L so forces and
-    torques are comparable. The grasp is in force closure iff the origin lies strictly inside the
-    convex hull of the w_ij (their positive span is R⁶). ε is the signed distance from the origin to
-    the hull boundary: the radius of the largest wrench ball the grasp resists with unit total normal
-    force (> 0 inside, ≤ 0 outside; 0 when the wrenches span less than 6 dimensions).
-
-    Args:
-        contacts: (m, 3) contact points, object frame, m.
-        normals: (m, 3) outward unit surface normals at the contacts, object frame.
-        mu: friction coefficient.
-        center: (3,) torque reference point, object frame, m (default: mean of the contacts).
-        length: characteristic length L, m (default: max distance of a contact from `center`).
-        n_edges: friction-cone edges.
-
-    Returns:
-        ε (dimensionless with L-scaled torques).
-    """
-    c = np.asarray(contacts, float).reshape(-1, 3)
-    n = np.asarray(normals, float).reshape(-1, 3)
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    center = c.mean(axis=0) if center is None else np.asarray(center, float)
-    if length is None:
-        length = float(np.max(np.linalg.norm(c - center, axis=1)))
-    length = max(float(length), 1e-9)
-    phi = 2.0 * np.pi * np.arange(n_edges) / n_edges
-    wrenches = []
-    for ci, ni in zip(c, n, strict=True):
-        a = np.array([1.0, 0.0, 0.0]) if abs(ni[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        t1 = np.cross(ni, a)
-        t1 /= np.linalg.norm(t1)
-        t2 = np.cross(ni, t1)
-        for ph in phi:
-            f = -ni + mu * (np.cos(ph) * t1 + np.sin(ph) * t2)
-            wrenches.append(np.concatenate([f, np.cross(ci - center, f) / length]))
-    W = np.array(wrenches)
-    if np.linalg.matrix_rank(W - W.mean(axis=0), tol=1e-9) < 6:
-        return 0.0
-    try:
-        hull = ConvexHull(W)
-    except QhullError:
-        return 0.0
-    return float(-np.max(hull.equations[:, -1]))
-
-
 def grasp_quality(grasp: Grasp, mu: float = 0.5) -> float:
     """Force-closure margin ε of a grasp (see `force_closure_quality`); > 0 means force closure.
 

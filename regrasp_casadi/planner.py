@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.grasp import Plan, PlanStep
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions
+from regrasp_casadi.stability import holding_quality
 from regrasp_casadi.transforms import inv_T, kabsch, rotation_angle
 
 if TYPE_CHECKING:
@@ -51,6 +52,11 @@ class PlannerOptions:
     """Largest number of gait/reposing iterations (paper: 50)."""
     gait: tuple[str, ...] | None = None
     """Gait pattern P (finger order); None: the paper's rule (see `gait_pattern`)."""
+    gait_order: Literal["pattern", "stability"] = "pattern"
+    """"pattern": the fingers of P in its order (the paper); "stability": each next gait is the finger of
+    P, not yet moved in this iteration, whose lift leaves the other fingers with the largest
+    force-closure margin (`stability.holding_quality`, μ = 0.5) — an answer to the paper's open
+    problems of gait order and grasp stability."""
     k_pos: float = 1000.0
     """k1, weight of the relaxed-rigidity position term."""
     k_orient: float = 10.0
@@ -134,6 +140,8 @@ class _Run:
         self.timing = {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0, "total": 0.0}
         self.solves = {"opt1": 0, "opt2": 0}
         self.gait: tuple[str, ...] = tuple(hand.fingers)
+        self.com = np.asarray(obj.mesh.center_mass, dtype=float)  # torque reference of the stability
+        self.length = float(np.max(np.linalg.norm(np.asarray(obj.mesh.vertices) - self.com, axis=1)))
         o = options
         self.gait_options = FingerGaitOptions(eta=o.eta, beta=o.beta, surface_tol=o.surface_tol, tau=o.tau,
                                               print_level=o.print_level)
@@ -151,6 +159,14 @@ class _Run:
         nlp, dt = _cached(key, lambda: InGraspNLP(self.hand, self.obj, method, self.in_grasp_options))
         self.timing["build"] += dt
         return nlp  # type: ignore[return-value]
+
+    def most_stable_gait(self, q: NDArray, T_palm_object: NDArray, todo: list[str]) -> str:
+        """Remove and return the finger of `todo` whose lift leaves the best-held grasp."""
+        tips = self.tips_object(q, T_palm_object)
+        contacts, _ = self.obj.closest_points(tips)
+        fingers = list(self.hand.fingers)
+        eps = [holding_quality(contacts, tips, fingers.index(f), self.com, self.length) for f in todo]
+        return todo.pop(int(np.argmax(eps)))
 
     def tips_object(self, q: NDArray, T_palm_object: NDArray) -> NDArray:
         """Tip-sphere centres (m, 3) in the object frame."""
@@ -232,7 +248,9 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     while err > options.zeta and n < options.max_iters:
         failures.clear()
         n_steps_before = len(run.steps)
-        for finger in run.gait:
+        todo = list(run.gait)
+        while todo:
+            finger = todo.pop(0) if options.gait_order == "pattern" else run.most_stable_gait(q, T, todo)
             r = fingers.index(finger)
             if run.steps[-1].contact_error[r] <= options.skip_tol:
                 continue
@@ -328,6 +346,8 @@ def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> s
         return "the initial and desired grasps use different objects"
     if options.method not in ("svd", "sd"):
         return f"unknown method {options.method!r} (use 'svd' or 'sd')"
+    if options.gait_order not in ("pattern", "stability"):
+        return f"unknown gait_order {options.gait_order!r} (use 'pattern' or 'stability')"
     if options.gait is not None:
         unknown = [f for f in options.gait if f not in grasp0.hand.fingers]
         if unknown:

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from regrasp_casadi.stability import holding_quality
 from regrasp_casadi.transforms import inv_T, transform_points
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -97,7 +98,10 @@ class VerifyReport:
     metrics: dict[str, Any]
     """Figures of the plan: "min_clearance" (m) and "min_clearance_at" ({"step", "who"}),
     "max_surface_error", "max_gait_step", "max_slip", "final_avg_error", "final_max_error" (m, exact),
-    "n_steps"."""
+    "n_steps", and the stability metric (not a check): "min_holding_quality" (least Ferrari–Canny margin
+    of the fingers holding the object during a gait, see `stability.holding_quality`; NaN without
+    gaits), "min_holding_quality_at" and "unstable_gaits" (gaits whose holding fingers are not in force
+    closure)."""
 
     def summary(self, max_violations: int = 20) -> str:
         """Readable multi-line text: verdict, metrics in mm, the first `max_violations` violations."""
@@ -112,6 +116,8 @@ class VerifyReport:
             f"{_mm(m.get('max_gait_step'))} mm, max slip {_mm(m.get('max_slip'))} mm",
             f"  final contact error avg {_mm(m.get('final_avg_error'))} mm, "
             f"max {_mm(m.get('final_max_error'))} mm",
+            f"  stability (metric): {m.get('unstable_gaits', 0)} gaits whose other fingers are not in force "
+            f"closure (μ = 0.5); least margin ε {m.get('min_holding_quality', float('nan')):.4f}",
         ]
         for v in self.violations[:max_violations]:
             lines.append(f"  step {v.step}: {v.check} [{v.who}]: {v.message}")
@@ -143,6 +149,7 @@ def verify(
     eta: float | None = None,
     max_slip: float = 1e-3,
     contact_consistency_tol: float = 0.5e-3,
+    mu: float = 0.5,
 ) -> VerifyReport:
     """Check a plan with exact geometry; never raises for a bad plan, reports it.
 
@@ -153,6 +160,7 @@ def verify(
         surface_tol: allowed |exact distance of a tip centre − tip radius|, m.
         min_clearance: required exact distance − radius of every non-tip collision sphere, m.
         limit_tol: slack on joint limits, rad.
+        mu: friction coefficient of the stability metric (force closure of the holding fingers).
         eta: gait step bound on the tip centre, m (default `plan.options["eta"]`, else 0.01).
         max_slip: allowed motion of a contact on the object during repose / final steps, m.
         contact_consistency_tol: allowed distance between a stored contact and the exact closest
@@ -176,7 +184,10 @@ def verify(
         "min_clearance": float("inf"), "min_clearance_at": None, "max_surface_error": 0.0,
         "max_gait_step": 0.0, "max_slip": 0.0, "final_avg_error": float("nan"),
         "final_max_error": float("nan"), "n_steps": len(plan.steps),
+        "min_holding_quality": float("inf"), "min_holding_quality_at": None, "unstable_gaits": 0,
     }
+    com = np.asarray(obj.mesh.center_mass, float)
+    length = float(np.max(np.linalg.norm(np.asarray(obj.mesh.vertices) - com, axis=1)))
     if tuple(plan.fingers) != fingers:
         add(-1, "structure", "", 0, 0, f"plan fingers {plan.fingers} differ from the hand's {fingers}")
         return _report(V, metrics)
@@ -273,6 +284,15 @@ def verify(
                 add(k, "gait_object_moved", s.finger, dT, EXACT_TOL,
                     f"object pose changed during the gait of {s.finger} (max |ΔT| = {dT:.3g})")
             fi = fingers.index(s.finger)
+            # stability (a metric, not a check: the paper's method does not guarantee it): force-closure
+            # margin of the other fingers, which hold the object while this one is lifted
+            T_object_palm = inv_T(prev.T_palm_object)
+            eps = holding_quality(closest_all[k - 1, :m], transform_points(T_object_palm, tips_palm[k - 1]),
+                                  fi, com, length, mu)
+            if eps < metrics["min_holding_quality"]:
+                metrics["min_holding_quality"] = eps
+                metrics["min_holding_quality_at"] = {"step": k, "who": s.finger}
+            metrics["unstable_gaits"] += int(eps <= 0.0)
             step_len = float(np.linalg.norm(tips_palm[k][fi] - tips_palm[k - 1][fi]))
             metrics["max_gait_step"] = max(metrics["max_gait_step"], step_len)
             if step_len > eta + STEP_TOL:
@@ -297,6 +317,8 @@ def verify(
             add(last, "converged_claim", "", claimed, zeta,
                 f"plan says converged but its last max contact error is {claimed * 1e3:.2f} mm "
                 f"> zeta {zeta * 1e3:.2f} mm")
+    if not np.isfinite(metrics["min_holding_quality"]):
+        metrics["min_holding_quality"] = float("nan")  # no gait
     if not np.isfinite(metrics["min_clearance"]):
         metrics["min_clearance"] = float("nan")
     return _report(V, metrics)

@@ -109,3 +109,11 @@ def test_package_level_verify_is_the_verifier(box):
 
     plan = plan_regrasp(box.grasp0, box.grasp_goal, method="svd", max_iters=1)
     assert regrasp_casadi.verify(plan, box.hand, box.obj) == verify(plan, box.hand, box.obj)
+
+
+def test_stability_gait_order_plans_and_verifies(box):
+    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="sd", gait_order="stability")
+    assert plan.status == "converged", plan.status_detail
+    assert verify(plan, box.hand, box.obj).ok
+    bad = plan_regrasp(box.grasp0, box.grasp_goal, gait_order="random")
+    assert bad.status == "invalid_input" and "gait_order" in bad.status_detail
