@@ -184,7 +184,7 @@ class FingerGaitNLP:
     def _exact(self, q_r, p):
         c_obj, s_obj, sd_tip, sd_l = self._points(q_r, p)
         pts = np.vstack([np.asarray(c_obj).reshape(1, 3), np.asarray(s_obj).T.reshape(-1, 3)])
-        exact = np.asarray(self.obj.exact_signed_distance(pts), float).ravel()
+        exact = np.asarray(self.obj.near_signed_distance(pts), float).ravel()
         smooth = np.concatenate([np.asarray(sd_tip).ravel(), np.asarray(sd_l).ravel()])
         return np.asarray(c_obj).ravel(), exact, smooth
 

@@ -566,6 +566,31 @@ class ObjectModel:
             N[j], H[j] = self.pieces[c].normals[top], self.pieces[c].offsets[top]
         return N, H
 
+    def local_planes_each(self, points, n_pieces: int = LOCAL_PIECES,
+                          k: int = 8) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """`local_planes` of each point separately, vectorised: for points (s, 3) returns normals
+        (s, n_pieces, k, 3) and offsets (s, n_pieces, k). Used for the clearance spheres: a subset of a
+        piece's planes can only lower the distance (conservative); leaving out a far piece can raise it,
+        which the NLPs' exact check after each solve catches."""
+        pts = np.atleast_2d(np.asarray(points, dtype=float))
+        s = len(pts)
+        N = np.empty((s, n_pieces, k, 3))
+        H = np.empty((s, n_pieces, k))
+        values = [pts @ pc.normals.T - pc.offsets for pc in self.pieces]  # (s, k_c) each
+        piece_d = np.column_stack([v.max(axis=1) for v in values])  # (s, pieces)
+        order = np.argsort(piece_d, axis=1, kind="stable")
+        rows = np.arange(s)
+        for j in range(n_pieces):
+            chosen = order[:, min(j, order.shape[1] - 1)]
+            for c in np.unique(chosen):
+                sel = rows[chosen == c]
+                v = values[c][sel]  # (s_c, k_c)
+                top = np.argsort(-v, axis=1, kind="stable")[:, :k]
+                top = np.resize(top.T, (k, len(sel))).T if top.shape[1] < k else top
+                N[sel, j] = self.pieces[c].normals[top]
+                H[sel, j] = self.pieces[c].offsets[top]
+        return N, H
+
     def signed_distance_map_function(self, k: int, tau: float | None = None) -> ca.Function:
         """Vectorised smooth distance: points (3, k), object frame -> d (1, k), m (cached)."""
         key = (float(DEFAULT_TAU if tau is None else tau), int(k))
@@ -648,6 +673,22 @@ class ObjectModel:
     def exact_signed_distance(self, points) -> NDArray[np.float64]:
         """Exact signed distance of points (n, 3), object frame, m, to the mesh; positive outside. (n,)."""
         return self._closest(points)[1]
+
+    def near_signed_distance(self, points, near: float = 0.01) -> NDArray[np.float64]:
+        """Exact signed distance (n,) of points (n, 3) that may be within `near` (m) of the surface;
+        for the others, the largest support-plane lower bound (already > `near`), which is cheaper.
+
+        For clearance checks that only need to know a distance exactly where it is small. The bound:
+        outside every convex piece, min over pieces of max_i (n_i·p − h_i) ≤ the distance to the union
+        of the pieces ≤ the distance to the mesh (the pieces contain it).
+        """
+        pts = np.atleast_2d(np.asarray(points, dtype=float))
+        bound = np.min(np.column_stack([pc.hard_distance(pts) for pc in self.pieces]), axis=1)
+        out = bound.copy()
+        close = bound <= near
+        if np.any(close):
+            out[close] = self.exact_signed_distance(pts[close])
+        return out
 
     def surface_normals(self, points) -> NDArray[np.float64]:
         """Outward unit normal (n, 3), object frame, of the mesh face closest to each point (n, 3), m."""

@@ -55,8 +55,8 @@ class InGraspOptions:
     """Temperature of the smooth distance to the workspace hulls and of the smooth max(0, ·), m."""
     tau: float | None = None
     """Temperature of the object's smooth signed distance (None: the object's default), m."""
-    clearance_planes: int = 16
-    """Planes per convex piece of the coarse distance used for the clearance constraints."""
+    clearance_planes: int = 8
+    """Planes per piece of the local plane sets of the clearance spheres (`local_planes_each`)."""
     max_slip: float = 5e-4
     """A result whose tip centres moved more than this relative to the object is rejected, m."""
     max_corrections: int = 2
@@ -150,8 +150,9 @@ class InGraspNLP:
 
     The tip-on-surface equality is an addition to the paper's OPT2: the relaxed rigidity alone lets a
     tip drift off the surface by ~0.1–1 mm when other constraints are active. A trust region bounds |Δt|
-    and |w| per reposing. δ are exact-distance offsets (see FingerGaitNLP); the tips' distances use the
-    local planes at their contacts (parameters), the other spheres the coarse pieces.
+    and |w| per reposing. δ are exact-distance offsets (see FingerGaitNLP); every distance uses local
+    plane sets passed as parameters (`ObjectModel.local_planes`): the tips' at their contacts, each
+    sphere's at its position, re-selected after a solve whose exact clearance is short.
     """
 
     _n_builds = 0
@@ -167,9 +168,9 @@ class InGraspNLP:
         radii = np.asarray(hand.sphere_radii(None), dtype=float)
         k = radii.size
         self._radii, self._k, self._n, self._m = radii, k, n, m
-        sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
         tau = float(DEFAULT_TAU if o.tau is None else o.tau)
         n_planes = LOCAL_PIECES * LOCAL_PLANES
+        n_sphere_planes = LOCAL_PIECES * o.clearance_planes
         ell_mm = _MM * 0.5 * float(np.linalg.norm(obj.mesh.extents))
 
         # decision variables
@@ -185,6 +186,8 @@ class InGraspNLP:
         delta_l = ca.SX.sym("delta_l", k + m)  # exact-distance offsets: non-tip spheres, then tips
         N_tips = ca.SX.sym("normals_tips", 3 * n_planes, m)  # local planes near each tip
         h_tips = ca.SX.sym("offsets_tips", n_planes, m)
+        N_sph = ca.SX.sym("normals_spheres", 3 * n_sphere_planes, k)  # local planes near each sphere
+        h_sph = ca.SX.sym("offsets_spheres", n_sphere_planes, k)
         if method == "pose":
             R_star_vec = ca.SX.sym("R_target", 9)
             t_star = ca.SX.sym("t_target", 3)
@@ -193,7 +196,7 @@ class InGraspNLP:
             g_tips = ca.SX.sym("p_object_tips_goal", 3, m)
             target = ca.vec(g_tips)
         p = ca.vertcat(R0_vec, t0, ca.vec(c_tips), ca.vec(R_tips), delta_l, ca.vec(N_tips), ca.vec(h_tips),
-                       target)
+                       ca.vec(N_sph), ca.vec(h_sph), target)
         R, t = terms.pose_from_params(ca.reshape(R0_vec, 3, 3), t0, dt, w)
 
         # objective
@@ -219,7 +222,9 @@ class InGraspNLP:
         s_obj = terms.to_object_frame(R, t, ca.horzcat(hand.sphere_centers_function(None)(q), tips_palm))
         sd_tips = [terms.local_signed_distance(N_tips[:, r], h_tips[:, r], s_obj[:, k + r], LOCAL_PIECES, tau)
                    for r in range(m)]
-        sd_l = ca.vertcat(terms.smooth_signed_distances(sd_coarse, s_obj[:, :k]), *sd_tips)
+        sd_sph = [terms.local_signed_distance(N_sph[:, i], h_sph[:, i], s_obj[:, i], LOCAL_PIECES, tau)
+                  for i in range(k)]
+        sd_l = ca.vertcat(*sd_sph, *sd_tips)
         radii_all = np.concatenate([radii, np.full(m, hand.tip_radius)])
         g = _MM * (sd_l + delta_l - ca.DM(radii_all))
         # bounds
@@ -247,7 +252,7 @@ class InGraspNLP:
 
     def _exact_clearance(self, x, p):
         s_obj, sd_l, R, t = self._points(x, p)
-        exact = np.asarray(self.obj.exact_signed_distance(np.asarray(s_obj).T), float).ravel()
+        exact = np.asarray(self.obj.near_signed_distance(np.asarray(s_obj).T), float).ravel()
         return exact, np.asarray(sd_l, float).ravel(), make_T(np.asarray(R), np.asarray(t).ravel())
 
     def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tips: ArrayLike, *,
@@ -278,19 +283,30 @@ class InGraspNLP:
         N_tips = np.stack([N.ravel() for N, _ in planes], axis=1)
         h_tips = np.stack([h.ravel() for _, h in planes], axis=1)
 
-        def params(delta):
+        def params(delta, sphere_planes):
+            N_sph = sphere_planes[0].reshape(self._k, -1).T  # (3·planes, k), C order per sphere
+            h_sph = sphere_planes[1].reshape(self._k, -1).T
             return np.concatenate([T0[:3, :3].ravel(order="F"), T0[:3, 3], c_tips.T.ravel(order="F"),
                                    R_tips.ravel(order="F"), delta, N_tips.ravel(order="F"),
-                                   h_tips.ravel(order="F"), target])
+                                   h_tips.ravel(order="F"), N_sph.ravel(order="F"), h_sph.ravel(order="F"),
+                                   target])
+
+        def select(x):  # local planes at the spheres' positions for the joints and pose of x
+            s_obj = np.asarray(self._points(x, params(zeros, sphere_planes))[0]).T[: self._k]
+            return self.obj.local_planes_each(s_obj, LOCAL_PIECES, o.clearance_planes)
 
         x = np.concatenate([q, np.zeros(6)])
         n_pts = self._k + self._m
-        exact, smooth, _ = self._exact_clearance(x, params(np.zeros(n_pts)))
+        zeros = np.zeros(n_pts)
+        sphere_planes = (np.zeros((self._k, LOCAL_PIECES, o.clearance_planes, 3)),
+                         np.zeros((self._k, LOCAL_PIECES, o.clearance_planes)))
+        sphere_planes = select(x)
+        exact, smooth, _ = self._exact_clearance(x, params(zeros, sphere_planes))
         delta = exact - smooth
         t_solve, iters = 0.0, 0
         res = None
         for _ in range(o.max_corrections + 1):
-            p = params(delta)
+            p = params(delta, sphere_planes)
             lam_x, lam_g = self._lam if self._lam is not None else (None, None)
             res = _solver.solve(self._solver, x0=np.concatenate([q, np.zeros(6)]), p=p, lbx=self._lbx,
                                 ubx=self._ubx, lbg=self._lbg, ubg=self._ubg, lam_x0=lam_x, lam_g0=lam_g)
@@ -306,8 +322,10 @@ class InGraspNLP:
             clear = np.min(gap[: self._k], initial=np.inf)
             if clear >= 0.5 * o.beta and np.max(np.abs(gap[self._k:])) <= 5e-5:
                 break
+            sphere_planes = select(x)  # re-select the spheres' planes where they are now
+            exact, smooth, _ = self._exact_clearance(x, params(zeros, sphere_planes))
             delta = exact - smooth
-        exact, _, T_new = self._exact_clearance(x, params(np.zeros(n_pts)))
+        _, _, T_new = self._exact_clearance(x, params(zeros, sphere_planes))  # `exact` is at x already
         surface_error = float(np.max(np.abs(exact[self._k:] - self.hand.tip_radius)))
         q_new = x[: self._n]
         tips_obj = (hand.tip_positions(q_new) - T_new[:3, 3]) @ T_new[:3, :3]
