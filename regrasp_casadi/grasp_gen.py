@@ -42,13 +42,13 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import ConvexHull, QhullError, cKDTree  # noqa: F401
+from scipy.spatial import cKDTree
 
 from regrasp_casadi.errors import GraspError
 from regrasp_casadi.geometry import ObjectModel
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.hand import Hand
-from regrasp_casadi.stability import force_closure_quality
+from regrasp_casadi.stability import FRICTION_EDGES, force_closure_quality
 from regrasp_casadi.transforms import exp_so3, inv_T, make_T, transform_points
 
 __all__ = [
@@ -70,6 +70,9 @@ _TIP_SPACING = 0.03  # minimum distance between two fingertip targets, m
 _MARGIN = 5e-4  # extra clearance demanded of the smooth distance of non-tip spheres, m
 _SCALE = 0.01  # length scale of the objective, m
 _MIN_QUALITY = 1e-3  # force-closure margin a generated grasp must exceed
+_CONE_SHRINK = float(np.cos(np.pi / FRICTION_EDGES))
+"""Generated grasps are tested with μ·cos(π/8): the circle of that radius lies inside every 8-edge
+polygon of radius μ, so the grasp is in force closure however the linearised cones are turned."""
 _CORRECTION_ROUNDS = 5
 _CLEARANCE_PLANES = 16  # planes per piece of the coarse distance used for the non-tip spheres
 _TAU = 2e-3  # smoothing temperature of the NLP's distance, m (the exact-minus-smooth offset removes its bias)
@@ -318,8 +321,8 @@ def _pick_targets(hand, data, ws, T, rng, avoid, min_mean_distance, mu, tries: i
     """Target indices whose own contacts (surface points, face normals) are in force closure."""
     for _ in range(tries):
         idx = _pick_targets_once(hand, data, ws, T, rng, avoid, min_mean_distance)
-        if idx is not None and force_closure_quality(data.points[idx], data.normals[idx], mu, data.com,
-                                                     data.length) > 2 * _MIN_QUALITY:
+        if idx is not None and force_closure_quality(data.points[idx], data.normals[idx], mu * _CONE_SHRINK,
+                                                     data.com, data.length) > 2 * _MIN_QUALITY:
             return idx
     return None
 
@@ -446,7 +449,7 @@ def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance)
     if not _non_tip_clear(grasp, nlp.beta):
         _STATS["contact"] += 1
         return None
-    quality = grasp_quality(grasp, mu)
+    quality = grasp_quality(grasp, mu * _CONE_SHRINK)
     if quality <= _MIN_QUALITY:
         log.debug("rejected: force-closure margin %.4g", quality)
         _STATS["force_closure"] += 1
@@ -503,7 +506,8 @@ def generate_grasps(
     Every returned grasp satisfies, with the exact mesh distance: each tip sphere on the surface within
     `SURFACE_TOL` (0.1 mm); every non-tip collision sphere (palm included) at least `beta` from the object;
     joints within limits; force closure with friction `mu` — the origin strictly inside the convex hull
-    of the contact wrenches of 8-edge linearised friction cones, with a margin ε > 1e-3 (torques about the
+    of the contact wrenches of 8-edge linearised friction cones, with a margin ε > 1e-3 computed with the
+    shrunk coefficient μ·cos(π/8), so it holds for any orientation of the cone edges (torques about the
     centre of mass scaled by the object's bounding radius; see `grasp_quality`).
 
     Args:
