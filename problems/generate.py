@@ -48,22 +48,29 @@ def _distance(pair) -> float:
     return float(np.mean(np.linalg.norm(a.contacts_object - b.contacts_object, axis=1)))
 
 
-# name -> (object factory, seed, candidate pairs, key to maximise (or minimise if negated), description)
+def _nearest_moderate(pair) -> tuple[bool, float]:
+    """Prefer object rotations up to 30 deg, then the smallest mean contact distance."""
+    return (_rotation(pair) <= np.radians(30.0), -_distance(pair))
+
+
+# name -> (object factory, seed, candidate pairs, key to maximise, description)
 PROBLEMS = {
     "box_rotate": (
         lambda: ObjectModel.box((0.05, 0.07, 0.12)), 1, 6, _rotation_up_to_25deg,
         "Box 0.05 x 0.07 x 0.12 m; the desired grasp turns the object (the largest rotation up to 25 deg "
         "of 6 seeded candidates) and moves every fingertip to new contacts (mean >= 3 cm away)."),
     "box_shift": (
-        lambda: ObjectModel.box((0.05, 0.07, 0.12)), 2, 3, lambda p: -_distance(p),
+        lambda: ObjectModel.box((0.05, 0.07, 0.12)), 2, 3, _nearest_moderate,
         "Box 0.05 x 0.07 x 0.12 m; fingertips relocated by the smallest mean distance >= 3 cm of 3 "
-        "seeded candidates, object pose nearly kept."),
+        "seeded candidates (object turned by at most 30 deg)."),
     "cylinder_slide": (
-        lambda: ObjectModel.cylinder(0.03, 0.14), 3, 3, lambda p: -_distance(p),
-        "Cylinder r = 0.03 m, h = 0.14 m; fingertips slide to new contacts (mean >= 3 cm away)."),
+        lambda: ObjectModel.cylinder(0.03, 0.14), 3, 3, _nearest_moderate,
+        "Cylinder r = 0.03 m, h = 0.14 m; fingertips slide to new contacts (mean >= 3 cm away; object "
+        "turned by at most 30 deg where a candidate allows)."),
     "bottle_regrasp": (
-        ObjectModel.bottle, 4, 3, lambda p: -_distance(p),
-        "Bottle (body r = 0.03 m, 0.19 m tall); a regrasp to contacts on average >= 3 cm away."),
+        ObjectModel.bottle, 4, 3, _nearest_moderate,
+        "Bottle (body r = 0.03 m, 0.19 m tall); a regrasp to contacts on average >= 3 cm away (object "
+        "turned by at most 30 deg where a candidate allows)."),
 }
 
 
