@@ -117,6 +117,7 @@ class FingerGaitNLP:
         self._radii = radii
         sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
         tau = float(DEFAULT_TAU if o.tau is None else o.tau)
+        n_local = self._n_local = min(LOCAL_PIECES, len(obj.pieces))  # pieces per local plane set
 
         # decision variables
         q_r = ca.SX.sym("q_r", idx.size)
@@ -127,8 +128,8 @@ class FingerGaitNLP:
         c_goal = ca.SX.sym("p_object_tip_goal", 3)
         delta_tip = ca.SX.sym("delta_tip", 1)
         delta_l = ca.SX.sym("delta_l", k)
-        N_tip = ca.SX.sym("normals_tip", LOCAL_PIECES * LOCAL_PLANES * 3)  # local planes near the tip
-        h_tip = ca.SX.sym("offsets_tip", LOCAL_PIECES * LOCAL_PLANES)
+        N_tip = ca.SX.sym("normals_tip", n_local * LOCAL_PLANES * 3)  # local planes near the tip
+        h_tip = ca.SX.sym("offsets_tip", n_local * LOCAL_PLANES)
         p = ca.vertcat(q_all, R_vec, t, c_goal, delta_tip, delta_l, N_tip, h_tip)
         R = ca.reshape(R_vec, 3, 3)
 
@@ -143,7 +144,7 @@ class FingerGaitNLP:
         else:
             s_obj = ca.SX(3, 0)
             sd_l = ca.SX(0, 1)
-        sd_tip = terms.local_signed_distance(N_tip, h_tip, c_obj, LOCAL_PIECES, tau)
+        sd_tip = terms.local_signed_distance(N_tip, h_tip, c_obj, n_local, tau)
 
         # objective
         f = _CM2 * ca.sumsqr(c_obj - c_goal)
@@ -200,7 +201,7 @@ class FingerGaitNLP:
         c0 = (self.hand.tip_positions(q)[r] - T[:3, 3]) @ T[:3, :3]  # tip centre, object frame
         reach = min(1.0, 1.5 * o.eta / max(float(np.linalg.norm(c_goal - c0)), 1e-12))
         selection = [c0 + s * reach * (c_goal - c0) for s in (0.0, 0.25, 0.5, 0.75, 1.0)]
-        planes = self.obj.local_planes(selection)  # the planes that matter along the way
+        planes = self.obj.local_planes(selection, self._n_local)  # the planes that matter along the way
         p0 = self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes)
         _, exact, smooth = self._exact(x0, p0)
         delta = exact - smooth  # offsets that make the smooth model exact at the start
@@ -226,7 +227,7 @@ class FingerGaitNLP:
             if surface_error <= o.surface_tol and clear_ok:
                 break
             selection.append(c_obj)  # re-select the planes with the solution point, then re-solve
-            planes = self.obj.local_planes(selection)
+            planes = self.obj.local_planes(selection, self._n_local)
             _, exact, smooth = self._exact(x, self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes))
             delta = exact - smooth
         q_new = q.copy()

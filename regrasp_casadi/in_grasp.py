@@ -21,7 +21,7 @@ from scipy.spatial import ConvexHull
 from regrasp_casadi import solver as _solver
 from regrasp_casadi import terms
 from regrasp_casadi.geometry import DEFAULT_TAU, LOCAL_PIECES, LOCAL_PLANES
-from regrasp_casadi.transforms import make_T
+from regrasp_casadi.transforms import exp_so3, log_SO3, make_T
 
 if TYPE_CHECKING:
     from regrasp_casadi.geometry import ObjectModel
@@ -55,8 +55,8 @@ class InGraspOptions:
     """Temperature of the smooth distance to the workspace hulls and of the smooth max(0, ·), m."""
     tau: float | None = None
     """Temperature of the object's smooth signed distance (None: the object's default), m."""
-    clearance_planes: int = 8
-    """Planes per piece of the local plane sets of the clearance spheres (`local_planes_each`)."""
+    clearance_planes: int = 16
+    """Planes per convex piece of the coarse distance used for the clearance constraints."""
     max_slip: float = 5e-4
     """A result whose tip centres moved more than this relative to the object is rejected, m."""
     max_corrections: int = 2
@@ -123,6 +123,17 @@ def workspace_hull(hand: Hand, finger: str, n_samples: int = 4000, seed: int = 0
     return WorkspaceHull(normals=n, offsets=h)
 
 
+def _clip_pose(T_from: NDArray, T_to: NDArray, max_translation: float, max_angle: float) -> NDArray:
+    """The pose a fraction of the way from `T_from` to `T_to` (translation linear, rotation geodesic)
+    such that it is at most `max_translation` (m) and `max_angle` (rad) from `T_from`: the trust region.
+    A target beyond it would only pull harder against the relaxed rigidity, i.e. make the tips slide."""
+    dt = T_to[:3, 3] - T_from[:3, 3]
+    w = log_SO3(T_from[:3, :3].T @ T_to[:3, :3])
+    frac = min(1.0, max_translation / max(float(np.linalg.norm(dt)), 1e-12),
+               max_angle / max(float(np.linalg.norm(w)), 1e-12))
+    return make_T(T_from[:3, :3] @ exp_so3(frac * w), T_from[:3, 3] + frac * dt)
+
+
 def _facet_area(tri: NDArray[np.float64]) -> float:
     return 0.5 * float(np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])))
 
@@ -143,16 +154,18 @@ class InGraspNLP:
 
     * ``method="pose"`` (the paper's SVD form, and the final in-grasp move):
       ``E_des = ||t − t*||² + (ℓ²/2) ||R − R*||_F²`` (mm², ℓ the object's radius in mm), with the target
-      pose (R*, t*) passed as a parameter; the planner computes it by Kabsch / Besl–McKay.
+      pose (R*, t*) passed as a parameter; the planner computes it by Kabsch / Besl–McKay. A target
+      beyond the trust region is first moved onto it (along the geodesic), so E_des cannot outpull the
+      relaxed rigidity.
     * ``method="sd"``: ``E_des = Σ_r max(0, SD(R g_r + t, R_r) + m)`` (mm), g_r the goal tip centres in
       the object frame, R_r the finger's reachable-workspace hull and m ≥ 0 a margin (``sd_margin``; the
       paper's form is m = 0); max and SD are smoothed (``tau_hull``).
 
     The tip-on-surface equality is an addition to the paper's OPT2: the relaxed rigidity alone lets a
     tip drift off the surface by ~0.1–1 mm when other constraints are active. A trust region bounds |Δt|
-    and |w| per reposing. δ are exact-distance offsets (see FingerGaitNLP); every distance uses local
-    plane sets passed as parameters (`ObjectModel.local_planes`): the tips' at their contacts, each
-    sphere's at its position, re-selected after a solve whose exact clearance is short.
+    and |w| per reposing. δ are exact-distance offsets (see FingerGaitNLP); the tips' distances use the
+    local planes at their contacts (parameters, `ObjectModel.local_planes`), the other spheres the
+    coarse pieces (`clearance_distance_function`: whole pieces, so a large move cannot leave them).
     """
 
     _n_builds = 0
@@ -169,8 +182,9 @@ class InGraspNLP:
         k = radii.size
         self._radii, self._k, self._n, self._m = radii, k, n, m
         tau = float(DEFAULT_TAU if o.tau is None else o.tau)
-        n_planes = LOCAL_PIECES * LOCAL_PLANES
-        n_sphere_planes = LOCAL_PIECES * o.clearance_planes
+        n_local = self._n_local = min(LOCAL_PIECES, len(obj.pieces))  # pieces per local plane set
+        n_planes = n_local * LOCAL_PLANES
+        sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
         ell_mm = _MM * 0.5 * float(np.linalg.norm(obj.mesh.extents))
 
         # decision variables
@@ -186,8 +200,6 @@ class InGraspNLP:
         delta_l = ca.SX.sym("delta_l", k + m)  # exact-distance offsets: non-tip spheres, then tips
         N_tips = ca.SX.sym("normals_tips", 3 * n_planes, m)  # local planes near each tip
         h_tips = ca.SX.sym("offsets_tips", n_planes, m)
-        N_sph = ca.SX.sym("normals_spheres", 3 * n_sphere_planes, k)  # local planes near each sphere
-        h_sph = ca.SX.sym("offsets_spheres", n_sphere_planes, k)
         if method == "pose":
             R_star_vec = ca.SX.sym("R_target", 9)
             t_star = ca.SX.sym("t_target", 3)
@@ -196,7 +208,7 @@ class InGraspNLP:
             g_tips = ca.SX.sym("p_object_tips_goal", 3, m)
             target = ca.vec(g_tips)
         p = ca.vertcat(R0_vec, t0, ca.vec(c_tips), ca.vec(R_tips), delta_l, ca.vec(N_tips), ca.vec(h_tips),
-                       ca.vec(N_sph), ca.vec(h_sph), target)
+                       target)
         R, t = terms.pose_from_params(ca.reshape(R0_vec, 3, 3), t0, dt, w)
 
         # objective
@@ -220,11 +232,9 @@ class InGraspNLP:
         f = e_des + o.k_pos * e_pos + o.k_orient * e_or
         # constraints: non-tip spheres keep β; the tips stay on the surface
         s_obj = terms.to_object_frame(R, t, ca.horzcat(hand.sphere_centers_function(None)(q), tips_palm))
-        sd_tips = [terms.local_signed_distance(N_tips[:, r], h_tips[:, r], s_obj[:, k + r], LOCAL_PIECES, tau)
+        sd_tips = [terms.local_signed_distance(N_tips[:, r], h_tips[:, r], s_obj[:, k + r], n_local, tau)
                    for r in range(m)]
-        sd_sph = [terms.local_signed_distance(N_sph[:, i], h_sph[:, i], s_obj[:, i], LOCAL_PIECES, tau)
-                  for i in range(k)]
-        sd_l = ca.vertcat(*sd_sph, *sd_tips)
+        sd_l = ca.vertcat(terms.smooth_signed_distances(sd_coarse, s_obj[:, :k]), *sd_tips)
         radii_all = np.concatenate([radii, np.full(m, hand.tip_radius)])
         g = _MM * (sd_l + delta_l - ca.DM(radii_all))
         # bounds
@@ -250,6 +260,14 @@ class InGraspNLP:
         """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""
         self._lam = None
 
+    def _offsets(self, exact: NDArray, smooth: NDArray) -> NDArray:
+        """Exact-distance offsets δ: the tips' in full (an equality), the clearance spheres' only where
+        they make the model more conservative (δ ≤ 0), so that a sphere that moves away from where δ was
+        taken is never judged farther than it is."""
+        delta = exact - smooth
+        delta[: self._k] = np.minimum(delta[: self._k], 0.0)
+        return delta
+
     def _exact_clearance(self, x, p):
         s_obj, sd_l, R, t = self._points(x, p)
         exact = np.asarray(self.obj.near_signed_distance(np.asarray(s_obj).T), float).ravel()
@@ -272,41 +290,31 @@ class InGraspNLP:
         if self.method == "pose":
             if T_target is None:
                 raise ValueError("method 'pose' needs T_target")
-            Tt = np.asarray(T_target, float)
+            Tt = _clip_pose(T0, np.asarray(T_target, float), o.max_translation,
+                            2.0 * np.arctan(o.max_rotation))
             target = np.concatenate([Tt[:3, :3].ravel(order="F"), Tt[:3, 3]])
         else:
             if p_object_tips_goal is None:
                 raise ValueError("method 'sd' needs p_object_tips_goal")
             target = np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T.ravel(order="F")
 
-        planes = [self.obj.local_planes(c[None]) for c in c_tips]  # the tips stay put on the object
+        planes = [self.obj.local_planes(c[None], self._n_local) for c in c_tips]  # tips stay put on it
         N_tips = np.stack([N.ravel() for N, _ in planes], axis=1)
         h_tips = np.stack([h.ravel() for _, h in planes], axis=1)
 
-        def params(delta, sphere_planes):
-            N_sph = sphere_planes[0].reshape(self._k, -1).T  # (3·planes, k), C order per sphere
-            h_sph = sphere_planes[1].reshape(self._k, -1).T
+        def params(delta):
             return np.concatenate([T0[:3, :3].ravel(order="F"), T0[:3, 3], c_tips.T.ravel(order="F"),
                                    R_tips.ravel(order="F"), delta, N_tips.ravel(order="F"),
-                                   h_tips.ravel(order="F"), N_sph.ravel(order="F"), h_sph.ravel(order="F"),
-                                   target])
-
-        def select(x):  # local planes at the spheres' positions for the joints and pose of x
-            s_obj = np.asarray(self._points(x, params(zeros, sphere_planes))[0]).T[: self._k]
-            return self.obj.local_planes_each(s_obj, LOCAL_PIECES, o.clearance_planes)
+                                   h_tips.ravel(order="F"), target])
 
         x = np.concatenate([q, np.zeros(6)])
-        n_pts = self._k + self._m
-        zeros = np.zeros(n_pts)
-        sphere_planes = (np.zeros((self._k, LOCAL_PIECES, o.clearance_planes, 3)),
-                         np.zeros((self._k, LOCAL_PIECES, o.clearance_planes)))
-        sphere_planes = select(x)
-        exact, smooth, _ = self._exact_clearance(x, params(zeros, sphere_planes))
-        delta = exact - smooth
+        zeros = np.zeros(self._k + self._m)
+        exact, smooth, _ = self._exact_clearance(x, params(zeros))
+        delta = self._offsets(exact, smooth)
         t_solve, iters = 0.0, 0
         res = None
         for _ in range(o.max_corrections + 1):
-            p = params(delta, sphere_planes)
+            p = params(delta)
             lam_x, lam_g = self._lam if self._lam is not None else (None, None)
             res = _solver.solve(self._solver, x0=np.concatenate([q, np.zeros(6)]), p=p, lbx=self._lbx,
                                 ubx=self._ubx, lbg=self._lbg, ubg=self._ubg, lam_x0=lam_x, lam_g0=lam_g)
@@ -322,10 +330,8 @@ class InGraspNLP:
             clear = np.min(gap[: self._k], initial=np.inf)
             if clear >= 0.5 * o.beta and np.max(np.abs(gap[self._k:])) <= 5e-5:
                 break
-            sphere_planes = select(x)  # re-select the spheres' planes where they are now
-            exact, smooth, _ = self._exact_clearance(x, params(zeros, sphere_planes))
-            delta = exact - smooth
-        _, _, T_new = self._exact_clearance(x, params(zeros, sphere_planes))  # `exact` is at x already
+            delta = self._offsets(exact, smooth)
+        _, _, T_new = self._exact_clearance(x, params(zeros))  # `exact` is at x already
         surface_error = float(np.max(np.abs(exact[self._k:] - self.hand.tip_radius)))
         q_new = x[: self._n]
         tips_obj = (hand.tip_positions(q_new) - T_new[:3, 3]) @ T_new[:3, :3]

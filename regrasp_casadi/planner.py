@@ -243,7 +243,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     errors = [float(np.mean(step.contact_error))]
     err = float(np.max(step.contact_error))
     n = 0
-    failures: list[str] = []  # failed solves of the current iteration ("<what>: IPOPT <status>")
+    failures: list[str] = []  # rejected solves of the current iteration ("<what>: IPOPT <status>")
     best_err, stalled = err, 0  # progress watch: iterations since the largest error last dropped
     while err > options.zeta and n < options.max_iters:
         failures.clear()
@@ -288,19 +288,20 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
                 err = float(np.max(step.contact_error))
             else:  # the object stays where it is
                 failures.append(f"reposing at step {len(run.steps)}: IPOPT {res2.status} (clearance "
-                                f"{res2.min_clearance * 1e3:.3f} mm)")
+                                f"{res2.min_clearance * 1e3:.3f} mm, slip {res2.max_slip * 1e3:.3f} mm, "
+                                f"surface error {res2.surface_error * 1e3:.3f} mm)")
                 _log.debug("%s; the object stays", failures[-1])
         n += 1
         errors.append(float(np.mean(run.steps[-1].contact_error)))
         if progress is not None:
             progress(n, options.max_iters, errors[-1])
-        if failures and len(run.steps) == n_steps_before:  # nothing could move: stuck on failures
-            return make_plan(run, "solver_failure", "; ".join(failures), n, errors)
         if err < best_err - options.stall_tol:
             best_err, stalled = err, 0
         else:
             stalled += 1
             if stalled >= options.stall_limit:
+                if failures and len(run.steps) == n_steps_before:  # the last iteration could not move
+                    return make_plan(run, "solver_failure", "; ".join(failures), n, errors)
                 return make_plan(run, "stalled", f"largest contact error {err * 1e3:.2f} mm > ζ: no progress "
                                  f"in the last {stalled} iterations", n, errors)
     converged = err <= options.zeta
