@@ -110,7 +110,9 @@ def environment(workers: int) -> dict:
         "scipy": scipy.__version__,
         "trimesh": trimesh.__version__,
         "git_commit": git("rev-parse", "HEAD"),
-        "git_dirty": bool(git("status", "--porcelain", "--untracked-files=no")),
+        # uncommitted changes to tracked files, other than benchmark outputs (which runs rewrite)
+        "git_dirty": bool(git("status", "--porcelain", "--untracked-files=no", "--", ".",
+                              ":(exclude)benchmarks/results")),
     }
 
 
