@@ -115,6 +115,8 @@ class FingerGaitNLP:
         radii = np.asarray(hand.sphere_radii(finger), dtype=float)
         k = radii.size
         self._radii = radii
+        # exact distances are needed only for points that may be within a sphere radius + 1 cm
+        self._near = np.concatenate([[hand.tip_radius], radii]) + 0.01
         sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
         tau = float(DEFAULT_TAU if o.tau is None else o.tau)
         n_local = self._n_local = min(LOCAL_PIECES, len(obj.pieces))  # pieces per local plane set
@@ -185,7 +187,7 @@ class FingerGaitNLP:
     def _exact(self, q_r, p):
         c_obj, s_obj, sd_tip, sd_l = self._points(q_r, p)
         pts = np.vstack([np.asarray(c_obj).reshape(1, 3), np.asarray(s_obj).T.reshape(-1, 3)])
-        exact = np.asarray(self.obj.near_signed_distance(pts), float).ravel()
+        exact = np.asarray(self.obj.near_signed_distance(pts, self._near), float).ravel()
         smooth = np.concatenate([np.asarray(sd_tip).ravel(), np.asarray(sd_l).ravel()])
         return np.asarray(c_obj).ravel(), exact, smooth
 

@@ -674,13 +674,15 @@ class ObjectModel:
         """Exact signed distance of points (n, 3), object frame, m, to the mesh; positive outside. (n,)."""
         return self._closest(points)[1]
 
-    def near_signed_distance(self, points, near: float = 0.01) -> NDArray[np.float64]:
-        """Exact signed distance (n,) of points (n, 3) that may be within `near` (m) of the surface;
-        for the others, the largest support-plane lower bound (already > `near`), which is cheaper.
+    def near_signed_distance(self, points, near=0.01) -> NDArray[np.float64]:
+        """Exact signed distance (n,) of points (n, 3) that may be within `near` (m; a scalar or one
+        value per point, e.g. sphere radius + margin) of the surface; for the others, the convex pieces'
+        support-plane estimate min_C max_i (n_i·p − h_i) (> `near`), which is much cheaper.
 
-        For clearance checks that only need to know a distance exactly where it is small. The bound:
-        outside every convex piece, min over pieces of max_i (n_i·p − h_i) ≤ the distance to the union
-        of the pieces ≤ the distance to the mesh (the pieces contain it).
+        For clearance checks that only need a distance exactly where it is small. Outside the pieces the
+        estimate is a lower bound of the distance to their union, which covers the mesh up to the
+        decomposition's error (see benchmarks/geometry.py), so a point it calls far is at least
+        `near` minus that error from the mesh.
         """
         pts = np.atleast_2d(np.asarray(points, dtype=float))
         bound = np.min(np.column_stack([pc.hard_distance(pts) for pc in self.pieces]), axis=1)

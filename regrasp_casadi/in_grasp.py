@@ -10,7 +10,7 @@ move) or the reachable workspaces of the fingers (`method="sd"`).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
 
 import casadi as ca
@@ -21,7 +21,7 @@ from scipy.spatial import ConvexHull
 from regrasp_casadi import solver as _solver
 from regrasp_casadi import terms
 from regrasp_casadi.geometry import DEFAULT_TAU, LOCAL_PIECES, LOCAL_PLANES
-from regrasp_casadi.transforms import exp_so3, log_SO3, make_T
+from regrasp_casadi.transforms import interpolate_pose, log_SO3, make_T
 
 if TYPE_CHECKING:
     from regrasp_casadi.geometry import ObjectModel
@@ -131,7 +131,7 @@ def _clip_pose(T_from: NDArray, T_to: NDArray, max_translation: float, max_angle
     w = log_SO3(T_from[:3, :3].T @ T_to[:3, :3])
     frac = min(1.0, max_translation / max(float(np.linalg.norm(dt)), 1e-12),
                max_angle / max(float(np.linalg.norm(w)), 1e-12))
-    return make_T(T_from[:3, :3] @ exp_so3(frac * w), T_from[:3, 3] + frac * dt)
+    return interpolate_pose(T_from, T_to, frac)
 
 
 def _facet_area(tri: NDArray[np.float64]) -> float:
@@ -270,7 +270,8 @@ class InGraspNLP:
 
     def _exact_clearance(self, x, p):
         s_obj, sd_l, R, t = self._points(x, p)
-        exact = np.asarray(self.obj.near_signed_distance(np.asarray(s_obj).T), float).ravel()
+        exact = np.asarray(self.obj.near_signed_distance(np.asarray(s_obj).T, self._radii_all + 0.01),
+                           float).ravel()
         return exact, np.asarray(sd_l, float).ravel(), make_T(np.asarray(R), np.asarray(t).ravel())
 
     def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tips: ArrayLike, *,
@@ -278,21 +279,37 @@ class InGraspNLP:
               p_object_tips_goal: ArrayLike | None = None) -> InGraspResult:
         """Repose the object from the grasp (`q` (n,), `T_palm_object` (4, 4)) whose tip-sphere centres are
         `p_object_tips` (m, 3) (object frame, m), towards `T_target` (4, 4) (method "pose") or so that the
-        goal tip centres `p_object_tips_goal` (m, 3) enter the fingers' workspaces (method "sd")."""
+        goal tip centres `p_object_tips_goal` (m, 3) enter the fingers' workspaces (method "sd").
+
+        Method "pose": a target beyond the trust region is moved onto it; if the tips then slide more than
+        `max_slip` (fingers that cannot follow a large move), the move is tried again towards a target
+        half and a quarter as far."""
+        T0 = np.asarray(T_palm_object, float)
+        if self.method == "sd":
+            return self._solve_once(q, T0, p_object_tips, None, p_object_tips_goal)
+        if T_target is None:
+            raise ValueError("method 'pose' needs T_target")
+        o = self.options
+        T_far = _clip_pose(T0, np.asarray(T_target, float), o.max_translation,
+                           2.0 * np.arctan(o.max_rotation))
+        spent = (0.0, 0)
+        for fraction in (1.0, 0.5, 0.25):
+            res = self._solve_once(q, T0, p_object_tips, interpolate_pose(T0, T_far, fraction), None)
+            spent = (spent[0] + res.solve_time, spent[1] + res.iterations)
+            if res.success or res.max_slip <= o.max_slip:
+                break
+        return replace(res, solve_time=spent[0], iterations=spent[1])
+
+    def _solve_once(self, q, T0, p_object_tips, T_target, p_object_tips_goal) -> InGraspResult:
         o = self.options
         hand = self.hand
         q = np.asarray(q, float)
-        T0 = np.asarray(T_palm_object, float)
         c_tips = np.asarray(p_object_tips, float).reshape(self._m, 3)
         fk = hand.fk(q)
         R_tips = np.stack([(T0[:3, :3].T @ fk[hand.tip_links[f]][:3, :3]).ravel(order="F")
                            for f in hand.fingers], axis=1)
         if self.method == "pose":
-            if T_target is None:
-                raise ValueError("method 'pose' needs T_target")
-            Tt = _clip_pose(T0, np.asarray(T_target, float), o.max_translation,
-                            2.0 * np.arctan(o.max_rotation))
-            target = np.concatenate([Tt[:3, :3].ravel(order="F"), Tt[:3, 3]])
+            target = np.concatenate([T_target[:3, :3].ravel(order="F"), T_target[:3, 3]])
         else:
             if p_object_tips_goal is None:
                 raise ValueError("method 'sd' needs p_object_tips_goal")

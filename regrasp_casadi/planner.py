@@ -305,6 +305,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
                 return make_plan(run, "stalled", f"largest contact error {err * 1e3:.2f} mm > ζ: no progress "
                                  f"in the last {stalled} iterations", n, errors)
     converged = err <= options.zeta
+    final_note = ""
     if options.final_move and converged:
         for _ in range(options.max_final_moves):
             if _pose_distance(T, goal_T, obj) <= options.final_pose_tol:
@@ -312,10 +313,11 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
             res3 = pose_nlp.solve(q, T, run.tips_object(q, T), T_target=goal_T)
             run.timing["opt2"] += res3.solve_time
             run.solves["opt2"] += 1
-            if not res3.success:
-                return make_plan(run, "solver_failure",
-                                 f"final in-grasp move at step {len(run.steps)}: IPOPT {res3.status}", n,
-                                 errors)
+            if not res3.success:  # the contacts are reached; the object stays where it is
+                final_note = (f"; the final in-grasp move towards the desired pose was rejected (IPOPT "
+                              f"{res3.status}, slip {res3.max_slip * 1e3:.2f} mm, clearance "
+                              f"{res3.min_clearance * 1e3:.2f} mm)")
+                break
             progress_made = _pose_distance(T, goal_T, obj) - _pose_distance(res3.T_palm_object, goal_T, obj)
             q, T = res3.q, res3.T_palm_object
             run.add_step("final", None, q, T, res3.status, res3.solve_time)
@@ -325,7 +327,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         converged = err <= options.zeta
     if converged:
         detail = (f"largest contact error {err * 1e3:.2f} mm ≤ ζ = {options.zeta * 1e3:.1f} mm; object "
-                  f"{_pose_distance(T, goal_T, obj) * 1e3:.2f} mm from the desired pose")
+                  f"{_pose_distance(T, goal_T, obj) * 1e3:.2f} mm from the desired pose{final_note}")
         return make_plan(run, "converged", detail, n, errors)
     return make_plan(run, "iteration_limit",
                      f"largest contact error {err * 1e3:.2f} mm > ζ after {n} iterations", n, errors)

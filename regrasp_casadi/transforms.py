@@ -24,6 +24,7 @@ __all__ = [
     "rotation_angle",
     "log_SO3",
     "exp_so3",
+    "interpolate_pose",
 ]
 
 
@@ -135,3 +136,11 @@ def log_SO3(R: ArrayLike) -> NDArray[np.float64]:
         return a * axis
     w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
     return a * w / (2.0 * np.sin(a))
+
+
+def interpolate_pose(T_a: ArrayLike, T_b: ArrayLike, s: float) -> NDArray[np.float64]:
+    """The pose (4, 4) a fraction `s` ∈ [0, 1] of the way from `T_a` to `T_b`: translation linear,
+    rotation along the geodesic (R_a exp(s log(R_aᵀ R_b)))."""
+    T_a, T_b = np.asarray(T_a, dtype=float), np.asarray(T_b, dtype=float)
+    w = log_SO3(T_a[:3, :3].T @ T_b[:3, :3])
+    return make_T(T_a[:3, :3] @ exp_so3(s * w), T_a[:3, 3] + s * (T_b[:3, 3] - T_a[:3, 3]))

@@ -373,3 +373,20 @@ def test_edge_planes_tighten_the_bound_around_box_edges(phi, along, radius):
     step = np.radians(20.0)
     assert hard <= radius + 1e-12
     assert hard >= radius * np.cos(step / 2) - 1e-12
+
+
+def test_near_signed_distance_is_exact_near_and_a_bound_far():
+    obj = ObjectModel.banana()
+    rng = np.random.default_rng(4)
+    pts, normals = obj.sample_surface(200, seed=4)
+    offsets = rng.uniform(-0.01, 0.05, size=len(pts))
+    p = pts + offsets[:, None] * normals
+    near = rng.uniform(0.005, 0.03, size=len(pts))  # one threshold per point, as for spheres of radii
+    approx = obj.near_signed_distance(p, near)
+    exact = obj.exact_signed_distance(p)
+    close = exact <= near
+    np.testing.assert_allclose(approx[close], exact[close], atol=1e-12)  # exact wherever it matters
+    estimated = approx != exact
+    assert np.all(approx[estimated] > near[estimated])  # elsewhere an estimate beyond `near` ...
+    # ... of a point that is really beyond `near`, up to the pieces' error (≤ 2 mm on this object)
+    assert np.all(exact[estimated] > near[estimated] - 0.002)
