@@ -117,3 +117,15 @@ def test_stability_gait_order_plans_and_verifies(box):
     assert verify(plan, box.hand, box.obj).ok
     bad = plan_regrasp(box.grasp0, box.grasp_goal, gait_order="random")
     assert bad.status == "invalid_input" and "gait_order" in bad.status_detail
+
+
+@pytest.mark.reference_data
+def test_a_ycb_regrasp_converges_and_verifies(reference_dir):
+    """One of the benchmark's YCB pairs (banana, a coacd-decomposed scanned mesh): catches what the
+    generated objects cannot, e.g. a distance model that is accurate on primitives only."""
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "problems" / "banana_1.yaml"
+    problem = RegraspProblem.load(path)
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd")
+    assert plan.status == "converged", plan.status_detail
+    report = verify(plan, problem.hand, problem.obj)
+    assert report.ok, report.summary()
