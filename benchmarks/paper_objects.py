@@ -110,10 +110,13 @@ def environment(workers: int) -> dict:
         "scipy": scipy.__version__,
         "trimesh": trimesh.__version__,
         "git_commit": git("rev-parse", "HEAD"),
-        # uncommitted changes to tracked files, other than benchmark outputs (which runs rewrite)
-        "git_dirty": bool(git("status", "--porcelain", "--untracked-files=no", "--", ".",
-                              ":(exclude)benchmarks/results")),
+        # uncommitted changes to the tracked code and data the results depend on
+        "git_dirty": bool(git("status", "--porcelain", "--untracked-files=no", "--", *_RESULT_INPUTS)),
     }
+
+
+_RESULT_INPUTS = ("regrasp_casadi", "models", "benchmarks/paper_objects.py", "benchmarks/problems",
+                  "pyproject.toml")
 
 
 def _ipopt_version() -> str:
