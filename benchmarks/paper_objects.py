@@ -20,12 +20,12 @@ does the same with the meshes of `../shared/reference/ycb/`:
 Planning time is `plan.timing["total"]` (NLP builds included; NLPs are cached per worker process and
 object, so the first plan on an object pays the builds). Measures and records; asserts nothing.
 The latest per-object table, with its machine and versions, is in `benchmarks/README.md`. A
-representative summary (commit 6727f88; Intel Xeon VM, 2 cores, `--workers 2`; Python 3.11.7, CasADi
+representative summary (commit 95f585c; Intel Xeon VM, 2 cores, `--workers 2`; Python 3.11.7, CasADi
 3.8.2, IPOPT 3.14.19 + MUMPS):
 
     method  runs  verified  success  median time (paper)  max time  median it. (paper)  error median/max
-    SVD     25    24        23       6.3 s (75 s)         24.6 s    8 (44)              1.13 / 6.67 mm
-    SD      25    25        25       6.22 s (729 s)       31.7 s    8 (29)              0.61 / 2.81 mm
+    SVD     25    25        25       3.61 s (75 s)        22.5 s    7 (44)              0.89 / 3.79 mm
+    SD      25    25        23       4.50 s (729 s)       39.2 s    7 (29)              1.13 / 20.97 mm
 """
 
 from __future__ import annotations
