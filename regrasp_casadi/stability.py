@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import ConvexHull, QhullError
 
 __all__ = ["FRICTION_EDGES", "force_closure_quality", "contact_normals", "holding_quality"]
 
@@ -65,6 +64,8 @@ def force_closure_quality(
         for ph in phi:
             f = -ni + mu * (np.cos(ph) * t1 + np.sin(ph) * t2)
             wrenches.append(np.concatenate([f, np.cross(ci - center, f) / length]))
+    from scipy.spatial import ConvexHull, QhullError  # imported here: `import regrasp_casadi` stays light
+
     W = np.array(wrenches)
     if np.linalg.matrix_rank(W - W.mean(axis=0), tol=1e-9) < 6:
         return 0.0
