@@ -269,6 +269,17 @@ def _lse_unit(y: ca.SX) -> ca.SX:
     return m + ca.log(ca.sum1(ca.exp(y - m)))
 
 
+def _smooth_distance_function(name: str, pieces, tau: float, symbolic: str) -> ca.Function:
+    """p_object (3,1) -> d: per piece τ·LSE((N p − h)/τ), smooth minimum over the pieces (−τ·LSE(−d/τ))."""
+    p = getattr(ca, symbolic).sym("p_object", 3)
+    d_pieces = []
+    for piece in pieces:  # normals and offsets pre-divided by τ: one operation less per plane
+        y = ca.mtimes(ca.DM(piece.normals / tau), p) - ca.DM(piece.offsets / tau)
+        d_pieces.append(_lse_unit(y))  # d_C / τ
+    d = -tau * _lse_unit(-ca.vertcat(*d_pieces))
+    return ca.Function(name, [p], [d], ["p_object"], ["d"])
+
+
 class ObjectModel:
     """A rigid object: watertight mesh, convex pieces, smooth (CasADi) and exact signed distances.
 
@@ -502,13 +513,7 @@ class ObjectModel:
         key = (tau, symbolic)
         f = self._sd_functions.get(key)
         if f is None:
-            p = getattr(ca, symbolic).sym("p_object", 3)
-            d_pieces = []
-            for piece in self.pieces:  # normals and offsets pre-divided by τ: one operation less per plane
-                y = ca.mtimes(ca.DM(piece.normals / tau), p) - ca.DM(piece.offsets / tau)
-                d_pieces.append(_lse_unit(y))  # d_C / τ
-            d = -tau * _lse_unit(-ca.vertcat(*d_pieces))
-            f = ca.Function(f"sd_{self.name}", [p], [d], ["p_object"], ["d"])
+            f = _smooth_distance_function(f"sd_{self.name}", self.pieces, tau, symbolic)
             self._sd_functions[key] = f
         return f
 
@@ -523,15 +528,9 @@ class ObjectModel:
         key = ("coarse", int(max_planes), tau)
         f = self._sd_functions.get(key)
         if f is None:
-            p = ca.SX.sym("p_object", 3)
-            d_pieces = []
-            for piece in self.pieces:
-                coarse = piece if len(piece.normals) <= max_planes else simplify_piece(piece.vertices,
-                                                                                      max_planes)
-                y = ca.mtimes(ca.DM(coarse.normals / tau), p) - ca.DM(coarse.offsets / tau)
-                d_pieces.append(_lse_unit(y))
-            d = -tau * _lse_unit(-ca.vertcat(*d_pieces))
-            f = ca.Function(f"sd_coarse_{self.name}", [p], [d], ["p_object"], ["d"])
+            coarse = [pc if len(pc.normals) <= max_planes else simplify_piece(pc.vertices, max_planes)
+                      for pc in self.pieces]
+            f = _smooth_distance_function(f"sd_coarse_{self.name}", coarse, tau, "SX")
             self._sd_functions[key] = f
         return f
 
@@ -564,31 +563,6 @@ class ObjectModel:
             top = np.argsort(-values[c].max(axis=0), kind="stable")[:k]
             top = np.resize(top, k)
             N[j], H[j] = self.pieces[c].normals[top], self.pieces[c].offsets[top]
-        return N, H
-
-    def local_planes_each(self, points, n_pieces: int = LOCAL_PIECES,
-                          k: int = 8) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """`local_planes` of each point separately, vectorised: for points (s, 3) returns normals
-        (s, n_pieces, k, 3) and offsets (s, n_pieces, k). Used for the clearance spheres: a subset of a
-        piece's planes can only lower the distance (conservative); leaving out a far piece can raise it,
-        which the NLPs' exact check after each solve catches."""
-        pts = np.atleast_2d(np.asarray(points, dtype=float))
-        s = len(pts)
-        N = np.empty((s, n_pieces, k, 3))
-        H = np.empty((s, n_pieces, k))
-        values = [pts @ pc.normals.T - pc.offsets for pc in self.pieces]  # (s, k_c) each
-        piece_d = np.column_stack([v.max(axis=1) for v in values])  # (s, pieces)
-        order = np.argsort(piece_d, axis=1, kind="stable")
-        rows = np.arange(s)
-        for j in range(n_pieces):
-            chosen = order[:, min(j, order.shape[1] - 1)]
-            for c in np.unique(chosen):
-                sel = rows[chosen == c]
-                v = values[c][sel]  # (s_c, k_c)
-                top = np.argsort(-v, axis=1, kind="stable")[:, :k]
-                top = np.resize(top.T, (k, len(sel))).T if top.shape[1] < k else top
-                N[sel, j] = self.pieces[c].normals[top]
-                H[sel, j] = self.pieces[c].offsets[top]
         return N, H
 
     def signed_distance_map_function(self, k: int, tau: float | None = None) -> ca.Function:
