@@ -348,7 +348,8 @@ class InGraspNLP:
             if clear >= 0.5 * o.beta and np.max(np.abs(gap[self._k:])) <= 5e-5:
                 break
             delta = self._offsets(exact, smooth)
-        _, _, T_new = self._exact_clearance(x, params(zeros))  # `exact` is at x already
+        _, _, R_new, t_new = self._points(x, params(zeros))  # (`exact` is already at x)
+        T_new = make_T(np.asarray(R_new), np.asarray(t_new).ravel())
         surface_error = float(np.max(np.abs(exact[self._k:] - self.hand.tip_radius)))
         q_new = x[: self._n]
         tips_obj = (hand.tip_positions(q_new) - T_new[:3, 3]) @ T_new[:3, :3]
