@@ -129,3 +129,16 @@ def test_a_ycb_regrasp_converges_and_verifies(reference_dir):
     assert plan.status == "converged", plan.status_detail
     report = verify(plan, problem.hand, problem.obj)
     assert report.ok, report.summary()
+
+
+def test_unreachable_goal_ends_with_a_status_and_a_valid_partial_plan(box):
+    """Goal contacts mirrored through the box centre (the opposite faces: every finger on the far side)
+    and a desired pose 30 cm away: no plan reaches it; the planner says so and what it did is valid."""
+    mirrored = -np.asarray(box.grasp0.contacts_object)  # the box is centred at its origin
+    T_far = np.array(box.grasp0.T_palm_object)
+    T_far[:3, 3] += [0.3, 0.0, 0.0]
+    goal = Grasp.from_contacts(box.hand, box.obj, mirrored, T_far)
+    plan = plan_regrasp(box.grasp0, goal, method="svd", max_iters=6)
+    assert plan.status in ("iteration_limit", "stalled", "solver_failure")
+    assert plan.iterations <= 6 and np.max(plan.steps[-1].contact_error) > plan.options["zeta"]
+    assert verify(plan, box.hand, box.obj).ok
