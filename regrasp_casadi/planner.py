@@ -258,9 +258,9 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
             run.timing["opt1"] += res.solve_time
             run.solves["opt1"] += res.solves
             if not res.success:  # the finger stays where it is, which is feasible
-                failures.append(f"finger gait of {finger} at step {len(run.steps)}: IPOPT {res.status} "
-                                f"(surface error {res.surface_error * 1e3:.3f} mm, clearance "
-                                f"{res.min_clearance * 1e3:.3f} mm)")
+                failures.append(f"finger gait of {finger} at step {len(run.steps)} rejected by the exact "
+                                f"checks (surface error {res.surface_error * 1e3:.3f} mm, clearance "
+                                f"{res.min_clearance * 1e3:.3f} mm; IPOPT: {res.status})")
                 _log.debug("%s; the finger stays", failures[-1])
                 continue
             moved = np.linalg.norm(hand.tip_positions(res.q)[r] - hand.tip_positions(q)[r])
@@ -287,9 +287,9 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
                 step = run.add_step("repose", None, q, T, res2.status, res2.solve_time)
                 err = float(np.max(step.contact_error))
             else:  # the object stays where it is
-                failures.append(f"reposing at step {len(run.steps)}: IPOPT {res2.status} (clearance "
+                failures.append(f"reposing at step {len(run.steps)} rejected by the exact checks (clearance "
                                 f"{res2.min_clearance * 1e3:.3f} mm, slip {res2.max_slip * 1e3:.3f} mm, "
-                                f"surface error {res2.surface_error * 1e3:.3f} mm)")
+                                f"surface error {res2.surface_error * 1e3:.3f} mm; IPOPT: {res2.status})")
                 _log.debug("%s; the object stays", failures[-1])
         n += 1
         errors.append(float(np.mean(run.steps[-1].contact_error)))
@@ -314,9 +314,9 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
             run.timing["opt2"] += res3.solve_time
             run.solves["opt2"] += 1
             if not res3.success:  # the contacts are reached; the object stays where it is
-                final_note = (f"; the final in-grasp move towards the desired pose was rejected (IPOPT "
-                              f"{res3.status}, slip {res3.max_slip * 1e3:.2f} mm, clearance "
-                              f"{res3.min_clearance * 1e3:.2f} mm)")
+                final_note = (f"; the final in-grasp move towards the desired pose was rejected by the "
+                              f"exact checks (slip {res3.max_slip * 1e3:.2f} mm, clearance "
+                              f"{res3.min_clearance * 1e3:.2f} mm; IPOPT: {res3.status})")
                 break
             progress_made = _pose_distance(T, goal_T, obj) - _pose_distance(res3.T_palm_object, goal_T, obj)
             q, T = res3.q, res3.T_palm_object
