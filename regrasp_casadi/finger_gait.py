@@ -184,6 +184,11 @@ class FingerGaitNLP:
         return np.concatenate([q, T[:3, :3].ravel(order="F"), T[:3, 3], c_goal, [delta_tip], delta_l,
                                planes[0].ravel(), planes[1].ravel()])
 
+    def _smooth(self, q_r, p):
+        """Smooth distances (1 + k,) of the tip and the finger's spheres (no offsets)."""
+        _, _, sd_tip, sd_l = self._points(q_r, p)
+        return np.concatenate([np.asarray(sd_tip).ravel(), np.asarray(sd_l).ravel()])
+
     def _exact(self, q_r, p):
         c_obj, s_obj, sd_tip, sd_l = self._points(q_r, p)
         pts = np.vstack([np.asarray(c_obj).reshape(1, 3), np.asarray(s_obj).T.reshape(-1, 3)])
@@ -205,7 +210,7 @@ class FingerGaitNLP:
         selection = [c0 + s * reach * (c_goal - c0) for s in (0.0, 0.25, 0.5, 0.75, 1.0)]
         planes = self.obj.local_planes(selection, self._n_local)  # the planes that matter along the way
         p0 = self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes)
-        _, exact, smooth = self._exact(x0, p0)
+        c_obj, exact, smooth = self._exact(x0, p0)  # tip and exact distances at x, kept current below
         delta = exact - smooth  # offsets that make the smooth model exact at the start
         t_solve, iters, solves = 0.0, 0, 0
         x = x0
@@ -230,15 +235,12 @@ class FingerGaitNLP:
                 break
             selection.append(c_obj)  # re-select the planes with the solution point, then re-solve
             planes = self.obj.local_planes(selection, self._n_local)
-            _, exact, smooth = self._exact(x, self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes))
-            delta = exact - smooth
+            delta = exact - self._smooth(x, self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes))
         q_new = q.copy()
         q_new[self._idx] = x
-        c_obj, exact, _ = self._exact(x, self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes))
         surface_error = float(abs(exact[0] - self.hand.tip_radius))
         min_clear = float(np.min(exact[1:] - self._radii)) if self._k else float("inf")
-        step = np.linalg.norm(self.hand.tip_positions(q_new)[self.hand.fingers.index(self.finger)]
-                              - self.hand.tip_positions(q)[self.hand.fingers.index(self.finger)])
+        step = float(np.linalg.norm(c_obj - c0))  # the object does not move during a gait
         feasible = (surface_error <= max(o.surface_tol, 1e-4) and min_clear >= 0.0
                     and step <= o.eta + 1e-6)
         if not feasible:
