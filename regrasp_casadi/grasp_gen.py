@@ -44,11 +44,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from regrasp_casadi import solver as _solver
+from regrasp_casadi import terms
 from regrasp_casadi.errors import GraspError
 from regrasp_casadi.geometry import ObjectModel
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.hand import Hand
-from regrasp_casadi.stability import FRICTION_EDGES, force_closure_quality
+from regrasp_casadi.stability import FRICTION_EDGES, force_closure_quality, torque_reference
 from regrasp_casadi.transforms import exp_so3, inv_T, make_T, transform_points
 
 __all__ = [
@@ -101,18 +103,11 @@ def grasp_quality(grasp: Grasp, mu: float = 0.5) -> float:
             normals = d / norm
     if normals is None:
         normals = np.asarray(grasp.obj.surface_normals(c), float)
-    com = np.asarray(grasp.obj.mesh.center_mass, float)
-    length = float(np.max(np.linalg.norm(np.asarray(grasp.obj.mesh.vertices) - com, axis=1)))
+    com, length = torque_reference(grasp.obj.mesh)
     return force_closure_quality(c, normals, mu, com, length)
 
 
 # ------------------------------------------------------------------------------------------- NLP
-def _cayley(a):
-    """Rotation (3,3) of Cayley parameters a (3,): I + 2(A + A²)/(1 + aᵀa), A = [a]×; angle 2·atan|a|."""
-    A = ca.skew(a)
-    return ca.MX.eye(3) + 2.0 * (A + ca.mtimes(A, A)) / (1.0 + ca.dot(a, a))
-
-
 class _GraspNLP:
     """The grasp-synthesis NLP of the module docstring, built once per (hand, object, β)."""
 
@@ -136,7 +131,7 @@ class _GraspNLP:
         q_ref = ca.MX.sym("q_ref", n)
         weights = ca.MX.sym("weights", 4)  # target, joints, translation, rotation
         p = ca.vertcat(ca.vec(R0), t0, ca.vec(targets), delta_tip, delta_sph, q_ref, weights)
-        R = ca.mtimes(R0, _cayley(a))
+        R = ca.mtimes(R0, terms.cayley_rotation(a))
         t = t0 + dt
         tips_palm = hand.tip_positions_function()(q)
         tips_obj = ca.mtimes(R.T, tips_palm - ca.repmat(t, 1, m))
@@ -177,18 +172,12 @@ class _GraspNLP:
                                delta_tip, delta_sph, q_ref, weights])
 
     def pose(self, x, R0, t0) -> NDArray[np.float64]:
-        a = x[self.n + 3:]
-        A = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-        C = np.eye(3) + 2.0 * (A + A @ A) / (1.0 + a @ a)
+        C = np.asarray(terms.cayley_rotation(ca.DM(x[self.n + 3:])))
         return make_T(R0 @ C, t0 + x[self.n:self.n + 3])
 
     def solve(self, x0, p) -> tuple[NDArray[np.float64], str]:
-        sol = self.solver(x0=x0, p=p, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
-        try:
-            status = str(self.solver.stats()["return_status"])
-        except RuntimeError:  # stats() can raise after some failed solves (CasADi 3.8.2)
-            status = "unknown"
-        return np.asarray(sol["x"]).ravel(), status
+        res = _solver.solve(self.solver, x0=x0, p=p, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
+        return res.x, res.status
 
 
 _STATS: collections.Counter = collections.Counter()
@@ -285,8 +274,7 @@ def _object_data(hand: Hand, obj: ObjectModel) -> _ObjectData:
     fixed = [i for i, s in enumerate(hand.spheres) if s.finger is None and not s.is_tip]
     centers = np.array([hand.spheres[i].center_link for i in fixed]).reshape(-1, 3)
     radii = np.array([hand.spheres[i].radius for i in fixed])
-    com = np.asarray(obj.mesh.center_mass, float)
-    length = float(np.max(np.linalg.norm(np.asarray(obj.mesh.vertices) - com, axis=1)))
+    com, length = torque_reference(obj.mesh)
     data = _ObjectData(np.asarray(pts), np.asarray(nrm), com, length, np.asarray(obb)[:3, :3], centers, radii)
     _OBJECT_DATA[(id(hand), id(obj))] = (obj, data)
     return data

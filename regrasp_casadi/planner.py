@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.grasp import Plan, PlanStep
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions
-from regrasp_casadi.stability import holding_quality
+from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, kabsch, rotation_angle
 
 if TYPE_CHECKING:
@@ -140,8 +140,7 @@ class _Run:
         self.timing = {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0, "total": 0.0}
         self.solves = {"opt1": 0, "opt2": 0}
         self.gait: tuple[str, ...] = tuple(hand.fingers)
-        self.com = np.asarray(obj.mesh.center_mass, dtype=float)  # torque reference of the stability
-        self.length = float(np.max(np.linalg.norm(np.asarray(obj.mesh.vertices) - self.com, axis=1)))
+        self.com, self.length = torque_reference(obj.mesh)  # of the stability-aware gait order
         o = options
         self.gait_options = FingerGaitOptions(eta=o.eta, beta=o.beta, surface_tol=o.surface_tol, tau=o.tau,
                                               print_level=o.print_level)

@@ -12,7 +12,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["FRICTION_EDGES", "force_closure_quality", "contact_normals", "holding_quality"]
+__all__ = [
+    "FRICTION_EDGES", "force_closure_quality", "contact_normals", "holding_quality", "torque_reference",
+]
 
 FRICTION_EDGES = 8
 """Edges of the linearised friction cones."""
@@ -92,3 +94,10 @@ def holding_quality(contacts: NDArray[np.float64], tip_centers: NDArray[np.float
     c = np.asarray(contacts, float)[keep]
     return force_closure_quality(c, contact_normals(c, np.asarray(tip_centers, float)[keep]), mu,
                                  center, length)
+
+
+def torque_reference(mesh) -> tuple[NDArray[np.float64], float]:
+    """Torque reference of an object's force-closure margins: its centre of mass (3,), object frame, m,
+    and the characteristic length L = its largest vertex distance from that point, m."""
+    com = np.asarray(mesh.center_mass, float)
+    return com, float(np.max(np.linalg.norm(np.asarray(mesh.vertices) - com, axis=1)))

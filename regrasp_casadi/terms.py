@@ -24,13 +24,13 @@ __all__ = [
 
 
 def cayley_rotation(w: ca.SX) -> ca.SX:
-    """Rotation (3, 3) of a Gibbs/Cayley vector `w` (3,): R = I + 2/(1 + wᵀw) (W + W²).
+    """Rotation (3, 3) of a Gibbs/Cayley vector `w` (3,): R = I + 2/(1 + wᵀw) (W + W²); SX, MX or DM.
 
     `w = tan(θ/2) · axis`, so it is smooth at w = 0 (unlike the rotation vector), which keeps IPOPT's
     exact Hessian well behaved for small object rotations.
     """
     W = ca.skew(w)
-    return ca.SX.eye(3) + 2.0 / (1.0 + ca.dot(w, w)) * (W + W @ W)
+    return ca.DM.eye(3) + 2.0 / (1.0 + ca.dot(w, w)) * (W + W @ W)
 
 
 def pose_from_params(R0: ca.SX, t0: ca.SX, dt: ca.SX, w: ca.SX) -> tuple[ca.SX, ca.SX]:

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from regrasp_casadi.stability import holding_quality
+from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -186,8 +186,7 @@ def verify(
         "final_max_error": float("nan"), "n_steps": len(plan.steps),
         "min_holding_quality": float("inf"), "min_holding_quality_at": None, "unstable_gaits": 0,
     }
-    com = np.asarray(obj.mesh.center_mass, float)
-    length = float(np.max(np.linalg.norm(np.asarray(obj.mesh.vertices) - com, axis=1)))
+    com, length = torque_reference(obj.mesh)
     if tuple(plan.fingers) != fingers:
         add(-1, "structure", "", 0, 0, f"plan fingers {plan.fingers} differ from the hand's {fingers}")
         return _report(V, metrics)
