@@ -111,12 +111,9 @@ def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, ela
         from regrasp_casadi.viewer import write_html
 
         write_html(plan, html, hand=hand, obj=obj)
-    kinds = {}
-    for st in plan.steps:
-        kinds[st.kind] = kinds.get(st.kind, 0) + 1
     err = plan.final_error
     print(f"plan: {plan.status} after {plan.iterations} iterations, {len(plan.steps)} steps "
-          f"({', '.join(f'{n} {k}' for k, n in kinds.items())}), method {plan.method}")
+          f"({plan.step_counts()}), method {plan.method}")
     if plan.status != "converged" and plan.status_detail:
         print(f"  ({' '.join(plan.status_detail.split())})")
     print(f"final average contact error: {err * 1e3:.2f} mm; planning time {elapsed:.2f} s")

@@ -495,10 +495,14 @@ class Plan:
             return float("nan")
         return float(np.mean(self.steps[-1].contact_error))
 
+    def step_counts(self) -> str:
+        """Steps by kind, e.g. "1 initial, 26 gait, 6 repose, 1 final" (kinds that occur, in order)."""
+        counts = {k: sum(s.kind == k for s in self.steps) for k in STEP_KINDS}
+        return ", ".join(f"{counts[k]} {k}" for k in STEP_KINDS if counts[k])
+
     def summary(self) -> str:
         """A short multi-line text: status, iterations, steps by kind, final errors (mm), timing (s)."""
-        counts = {k: sum(s.kind == k for s in self.steps) for k in STEP_KINDS}
-        kinds = ", ".join(f"{counts[k]} {k}" for k in STEP_KINDS if counts[k])
+        kinds = self.step_counts()
         lines = [
             f"status: {self.status}" + (f" ({self.status_detail})" if self.status_detail else ""),
             f"method: {self.method}, iterations: {self.iterations}, steps: {len(self.steps)} ({kinds})",
