@@ -284,9 +284,22 @@ class InGraspNLP:
         Method "pose": a target beyond the trust region is moved onto it; if the tips then slide more than
         `max_slip` (fingers that cannot follow a large move), the move is tried again towards a target
         half and a quarter as far."""
+        q = np.asarray(q, float)
         T0 = np.asarray(T_palm_object, float)
+        c_tips = np.asarray(p_object_tips, float).reshape(self._m, 3)
+        fk = self.hand.fk(q)  # the grasp's data, the same for every try below
+        R_tips = np.stack([(T0[:3, :3].T @ fk[self.hand.tip_links[f]][:3, :3]).ravel(order="F")
+                           for f in self.hand.fingers], axis=1)
+        planes = [self.obj.local_planes(c[None], self._n_local) for c in c_tips]  # tips stay put on it
+        grasp = np.concatenate([T0[:3, :3].ravel(order="F"), T0[:3, 3], c_tips.T.ravel(order="F"),
+                                R_tips.ravel(order="F")])
+        tip_planes = np.concatenate([np.stack([N.ravel() for N, _ in planes], axis=1).ravel(order="F"),
+                                     np.stack([h.ravel() for _, h in planes], axis=1).ravel(order="F")])
         if self.method == "sd":
-            return self._solve_once(q, T0, p_object_tips, None, p_object_tips_goal)
+            if p_object_tips_goal is None:
+                raise ValueError("method 'sd' needs p_object_tips_goal")
+            target = np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T.ravel(order="F")
+            return self._solve_once(q, c_tips, grasp, tip_planes, target)
         if T_target is None:
             raise ValueError("method 'pose' needs T_target")
         o = self.options
@@ -294,35 +307,22 @@ class InGraspNLP:
                            2.0 * np.arctan(o.max_rotation))
         spent = (0.0, 0)
         for fraction in (1.0, 0.5, 0.25):
-            res = self._solve_once(q, T0, p_object_tips, interpolate_pose(T0, T_far, fraction), None)
+            T_try = interpolate_pose(T0, T_far, fraction)
+            target = np.concatenate([T_try[:3, :3].ravel(order="F"), T_try[:3, 3]])
+            res = self._solve_once(q, c_tips, grasp, tip_planes, target)
             spent = (spent[0] + res.solve_time, spent[1] + res.iterations)
             if res.success or res.max_slip <= o.max_slip:
                 break
         return replace(res, solve_time=spent[0], iterations=spent[1])
 
-    def _solve_once(self, q, T0, p_object_tips, T_target, p_object_tips_goal) -> InGraspResult:
+    def _solve_once(self, q, c_tips, grasp, tip_planes, target) -> InGraspResult:
+        """One move with the parameters in their NLP layout: `grasp` (R0, t0, tip centres, tip
+        orientations), `tip_planes` (normals, offsets) and `target` (pose or goal tip centres)."""
         o = self.options
         hand = self.hand
-        q = np.asarray(q, float)
-        c_tips = np.asarray(p_object_tips, float).reshape(self._m, 3)
-        fk = hand.fk(q)
-        R_tips = np.stack([(T0[:3, :3].T @ fk[hand.tip_links[f]][:3, :3]).ravel(order="F")
-                           for f in hand.fingers], axis=1)
-        if self.method == "pose":
-            target = np.concatenate([T_target[:3, :3].ravel(order="F"), T_target[:3, 3]])
-        else:
-            if p_object_tips_goal is None:
-                raise ValueError("method 'sd' needs p_object_tips_goal")
-            target = np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T.ravel(order="F")
-
-        planes = [self.obj.local_planes(c[None], self._n_local) for c in c_tips]  # tips stay put on it
-        N_tips = np.stack([N.ravel() for N, _ in planes], axis=1)
-        h_tips = np.stack([h.ravel() for _, h in planes], axis=1)
 
         def params(delta):
-            return np.concatenate([T0[:3, :3].ravel(order="F"), T0[:3, 3], c_tips.T.ravel(order="F"),
-                                   R_tips.ravel(order="F"), delta, N_tips.ravel(order="F"),
-                                   h_tips.ravel(order="F"), target])
+            return np.concatenate([grasp, delta, tip_planes, target])
 
         x = np.concatenate([q, np.zeros(6)])
         zeros = np.zeros(self._k + self._m)
