@@ -1,0 +1,114 @@
+"""Behaviour fingerprint of the planner: status, iterations, step kinds and errors of every plan.
+
+The planner is deterministic, so a refactor that claims "the plans come out the same" can be checked:
+record a fingerprint before the change, another after, and compare them.
+
+    python benchmarks/regression.py --out before.json                 # shipped problems + YCB pairs
+    python benchmarks/regression.py --out after.json --compare before.json
+    python benchmarks/regression.py --no-ycb --out quick.json          # shipped problems only (~20 s)
+
+Each record holds the problem, method, status, iterations, the step kinds in order, the mean and largest
+final contact error (mm, rounded to 1 µm) and whether `verify` passes. `--compare` prints a before/after
+table and exits 1 when any status, iteration count, step sequence or error differs. Measures; asserts
+nothing by itself.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+REPO = HERE.parent
+sys.path.insert(0, str(HERE))
+
+
+def _problem_files(ycb: bool) -> list[pathlib.Path]:
+    files = sorted((REPO / "problems").glob("*.yaml"))
+    ycb_dir = REPO.parent / "shared" / "reference" / "ycb"
+    if ycb and ycb_dir.is_dir():
+        files += sorted((HERE / "problems").glob("*.yaml"))
+    return files
+
+
+def fingerprint(path: str, method: str) -> dict:
+    """Plan one problem with one method; return its fingerprint (never raises)."""
+    from regrasp_casadi.planner import plan_regrasp
+    from regrasp_casadi.problem import RegraspProblem
+    from regrasp_casadi.verify import verify
+
+    rec = {"problem": pathlib.Path(path).stem, "method": method}
+    try:
+        problem = RegraspProblem.load(path)
+        plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method)
+        ok = bool(verify(plan, problem.hand, problem.obj).ok)
+    except Exception as exc:  # recorded, not raised
+        rec.update(status=f"exception: {type(exc).__name__}: {exc}")
+        return rec
+    err = plan.steps[-1].contact_error if plan.steps else np.array([np.nan])
+    rec.update(status=plan.status, iterations=int(plan.iterations),
+               steps="".join(s.kind[0] for s in plan.steps),
+               mean_error_mm=round(float(np.mean(err)) * 1e3, 3),
+               max_error_mm=round(float(np.max(err)) * 1e3, 3), verified=ok,
+               time_s=round(float(plan.timing.get("total", 0.0)), 2))
+    return rec
+
+
+def _key(rec: dict) -> tuple[str, str]:
+    return rec["problem"], rec["method"]
+
+
+_COMPARED = ("status", "iterations", "steps", "mean_error_mm", "max_error_mm", "verified")
+
+
+def compare(before: list[dict], after: list[dict]) -> int:
+    """Print a before/after markdown table; return the number of records that differ."""
+    old = {_key(r): r for r in before}
+    print("| problem | method | status | iterations | steps (g/r/f) | mean / max error (mm) | verified | same |")
+    print("|---|---|---|---|---|---|---|---|")
+    n_diff = 0
+    for rec in after:
+        ref = old.get(_key(rec), {})
+        same = all(ref.get(k) == rec.get(k) for k in _COMPARED)
+        n_diff += not same
+
+        def both(k, rec=rec, ref=ref):
+            a, b = ref.get(k, "—"), rec.get(k, "—")
+            return f"{a}" if a == b else f"{a} → {b}"
+
+        s = rec.get("steps", "")
+        counts = f"{s.count('g')}/{s.count('r')}/{s.count('f')}"
+        print(f"| {rec['problem']} | {rec['method']} | {both('status')} | {both('iterations')} | {counts} | "
+              f"{both('mean_error_mm')} / {both('max_error_mm')} | {both('verified')} | "
+              f"{'yes' if same else 'NO'} |")
+    return n_diff
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=pathlib.Path, required=True, help="fingerprint JSON to write")
+    ap.add_argument("--compare", type=pathlib.Path, help="an earlier fingerprint to compare with")
+    ap.add_argument("--no-ycb", action="store_true", help="shipped problems only")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args(argv)
+    from machine import machine_info
+
+    jobs = [(str(p), m) for p in _problem_files(not args.no_ycb) for m in ("svd", "sd")]
+    with ProcessPoolExecutor(args.workers) as pool:
+        records = list(pool.map(fingerprint, *zip(*jobs, strict=True)))
+    args.out.write_text(json.dumps({"machine": machine_info(), "records": records}, indent=1))
+    if args.compare:
+        before = json.loads(args.compare.read_text())["records"]
+        n_diff = compare(before, records)
+        print(f"{n_diff} of {len(records)} plans differ")
+        return 1 if n_diff else 0
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
