@@ -22,8 +22,8 @@ _LAZY = {
     "Hand": "regrasp_casadi.hand",
     "ObjectModel": "regrasp_casadi.geometry",
     "Grasp": "regrasp_casadi.grasp",
-    "Plan": "regrasp_casadi.grasp",
-    "PlanStep": "regrasp_casadi.grasp",
+    "Plan": "regrasp_casadi.plan",
+    "PlanStep": "regrasp_casadi.plan",
     "RegraspProblem": "regrasp_casadi.problem",
     "plan_regrasp": "regrasp_casadi.planner",
     "PlannerOptions": "regrasp_casadi.planner",
@@ -43,9 +43,11 @@ __all__ = ["__version__", "verify", *_LAZY]  # noqa: PLE0604
 
 # `verify` is the submodule regrasp_casadi.verify, which is callable (it calls verify.verify): Python
 # binds a package's submodule to the package attribute of the same name, so a function could not stay.
-from regrasp_casadi import verify  # noqa: E402
+# It is imported on first use (`__getattr__` below), like every other name here, so that importing a
+# light module such as regrasp_casadi.plan does not load the verifier and its numerical dependencies.
 
 if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi import verify  # noqa: F401
     from regrasp_casadi.errors import (  # noqa: F401
         GraspError,
         MeshError,
@@ -56,15 +58,18 @@ if TYPE_CHECKING:  # pragma: no cover
     )
     from regrasp_casadi.finger_gait import FingerGaitNLP  # noqa: F401
     from regrasp_casadi.geometry import ObjectModel  # noqa: F401
-    from regrasp_casadi.grasp import Grasp, Plan, PlanStep  # noqa: F401
+    from regrasp_casadi.grasp import Grasp  # noqa: F401
     from regrasp_casadi.hand import Hand  # noqa: F401
     from regrasp_casadi.in_grasp import InGraspNLP  # noqa: F401
+    from regrasp_casadi.plan import Plan, PlanStep  # noqa: F401
     from regrasp_casadi.planner import PlannerOptions, plan_regrasp  # noqa: F401
     from regrasp_casadi.problem import RegraspProblem  # noqa: F401
     from regrasp_casadi.verify import VerifyReport  # noqa: F401
 
 
 def __getattr__(name: str):
+    if name == "verify":
+        return importlib.import_module("regrasp_casadi.verify")
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'regrasp_casadi' has no attribute {name!r}")

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pragma: no cover
-    from regrasp_casadi.grasp import Plan
+    from regrasp_casadi.plan import Plan
 
 __all__ = ["main", "EXIT_OK", "EXIT_FAILED", "EXIT_BAD_INPUT", "EXIT_INTERNAL"]
 
@@ -130,7 +130,7 @@ def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, ela
 
 def _load_plan(path: str) -> Plan:
     from regrasp_casadi.errors import PlanFormatError
-    from regrasp_casadi.grasp import Plan
+    from regrasp_casadi.plan import Plan
 
     p = Path(path)
     if not p.is_file():

@@ -19,8 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
-from regrasp_casadi.grasp import Plan, PlanStep
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions
+from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, kabsch, rotation_angle
 

@@ -7,13 +7,18 @@ path, e.g. ``problems/x.yaml: grasp_goal.contacts.thumb: expected 3 numbers, got
 
     >>> problem = RegraspProblem.load("problems/box_rotate.yaml")
     >>> plan = plan_regrasp(problem.grasp0, problem.grasp_goal)
+
+`plan_models(plan)` rebuilds the hand and the object of a (loaded) plan from its specs.
 """
 
 from __future__ import annotations
 
 import inspect
+import json
 import os
 import pathlib
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -21,14 +26,16 @@ import numpy as np
 import yaml
 
 from regrasp_casadi.errors import GraspError, MeshError, ModelError, ProblemFileError
+from regrasp_casadi.files import atomic_write_text
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.transforms import make_T, rpy_to_R
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.geometry import ObjectModel
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.plan import Plan
 
-__all__ = ["RegraspProblem", "PROBLEM_SCHEMA_VERSION"]
+__all__ = ["RegraspProblem", "PROBLEM_SCHEMA_VERSION", "plan_models", "clear_model_cache"]
 
 PROBLEM_SCHEMA_VERSION = 1
 """Version of the problem-file schema; files must say `schema_version: 1`."""
@@ -292,9 +299,8 @@ class RegraspProblem:
         path = pathlib.Path(path)
         d = self.to_yaml_dict(base_dir=path.resolve().parent)
         header = f"# regrasp problem {self.name!r} (schema in problems/README.md)\n"
-        path.write_text(header + yaml.safe_dump(d, sort_keys=False, default_flow_style=None, width=110),
-                        encoding="utf-8")
-        return path
+        text = header + yaml.safe_dump(d, sort_keys=False, default_flow_style=None, width=110)
+        return atomic_write_text(path, text)
 
 
 def _rel(p: str, base_dir: str | os.PathLike | None) -> str:
@@ -317,3 +323,73 @@ def _plain(x: Any) -> Any:
     if isinstance(x, (list, tuple)):
         return [_plain(v) for v in x]
     return x
+
+
+# ------------------------------------------------------------------------------ models of a plan
+_MODEL_CACHE_SIZE = 8
+"""How many hands and objects `plan_models` keeps (least recently used ones are dropped first)."""
+
+_model_cache: OrderedDict[tuple[str, str], Any] = OrderedDict()
+
+
+def plan_models(
+    plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None
+) -> tuple[Hand, ObjectModel]:
+    """The hand and the object of a plan, rebuilt from `plan.hand_spec` and `plan.object_spec`.
+
+    Models are cached per spec: the spec's content plus, for a spec naming a file ("urdf", "mesh"),
+    the file's absolute path, size and modification time. Verifying, viewing and replaying one plan (or
+    several plans of one problem) build each model once. `clear_model_cache()` empties the cache.
+
+    Args:
+        plan: a plan, e.g. from `Plan.load`.
+        hand, obj: models to use as they are instead of rebuilding them (for functions whose `hand` /
+            `obj` arguments default to the plan's: ``hand, obj = plan_models(plan, hand, obj)``).
+
+    Returns:
+        (hand, obj): `Hand.from_spec(plan.hand_spec)`, `ObjectModel.from_spec(plan.object_spec)`
+        (or the models given).
+
+    Raises:
+        ModelError: the hand spec names an unknown model or an unreadable URDF.
+        MeshError: the object spec names an unknown primitive or an unreadable mesh.
+    """
+    if hand is None:
+        from regrasp_casadi.hand import Hand
+
+        hand = _cached_model("hand", plan.hand_spec, "urdf", Hand.from_spec)
+    if obj is None:
+        from regrasp_casadi.geometry import ObjectModel
+
+        obj = _cached_model("object", plan.object_spec, "mesh", ObjectModel.from_spec)
+    return hand, obj
+
+
+def clear_model_cache() -> None:
+    """Forget every hand and object built by `plan_models`."""
+    _model_cache.clear()
+
+
+def _cached_model(kind: str, spec: dict, file_key: str, build: Callable[[dict], Any]) -> Any:
+    key = (kind, _spec_key(spec, file_key))
+    if key in _model_cache:
+        _model_cache.move_to_end(key)
+        return _model_cache[key]
+    model = build(dict(spec))
+    _model_cache[key] = model
+    while len(_model_cache) > _MODEL_CACHE_SIZE:
+        _model_cache.popitem(last=False)
+    return model
+
+
+def _spec_key(spec: dict, file_key: str) -> str:
+    """Canonical text of `spec` (sorted keys), with the stamp of the file it names under `file_key`."""
+    stamp = None
+    if isinstance(spec.get(file_key), str):
+        file = os.path.abspath(os.path.expanduser(spec[file_key]))
+        try:
+            st = os.stat(file)
+            stamp = [file, st.st_size, st.st_mtime_ns]
+        except OSError:
+            stamp = [file]
+    return json.dumps([_plain(spec), stamp], sort_keys=True, default=str)

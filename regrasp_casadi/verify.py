@@ -29,13 +29,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from regrasp_casadi.problem import plan_models
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.geometry import ObjectModel
-    from regrasp_casadi.grasp import Plan
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.plan import Plan
 
 __all__ = ["Violation", "VerifyReport", "verify", "CHECKS"]
 
@@ -155,8 +156,8 @@ def verify(
 
     Args:
         plan: the plan.
-        hand: the hand (default `plan.hand()`).
-        obj: the object (default `plan.object()`).
+        hand: the hand (default: rebuilt from the plan, `problem.plan_models`).
+        obj: the object (default: rebuilt from the plan, `problem.plan_models`).
         surface_tol: allowed |exact distance of a tip centre − tip radius|, m.
         min_clearance: required exact distance − radius of every non-tip collision sphere, m.
         limit_tol: slack on joint limits, rad.
@@ -169,8 +170,7 @@ def verify(
     Returns:
         VerifyReport with ok, violations and metrics.
     """
-    hand = plan.hand() if hand is None else hand
-    obj = plan.object() if obj is None else obj
+    hand, obj = plan_models(plan, hand, obj)
     eta = float(plan.options.get("eta", DEFAULT_ETA) if eta is None else eta)
     zeta = float(plan.options.get("zeta", DEFAULT_ZETA))
     V: list[Violation] = []

@@ -39,10 +39,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
+from regrasp_casadi.files import atomic_write_text
+from regrasp_casadi.problem import plan_models
+
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.geometry import ObjectModel
-    from regrasp_casadi.grasp import Plan
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.plan import Plan
 
 __all__ = ["Keyframe", "plan_keyframes", "step_times", "write_html", "show", "scene_html",
            "stop_live_viewers"]
@@ -121,8 +124,8 @@ def plan_keyframes(
 
     Args:
         plan: the plan to replay.
-        hand: the plan's hand (default `plan.hand()`).
-        obj: the plan's object (default `plan.object()`; unused for the poses, accepted for symmetry).
+        hand: the plan's hand (default: rebuilt from the plan, `problem.plan_models`).
+        obj: the plan's object (unused for the poses, accepted for symmetry).
         fps: frames per second of the interpolation (> 0).
         seconds_per_step: replay duration of one step, s (> 0).
         easing: smoothstep easing between steps (True) or constant speed (False).
@@ -137,7 +140,7 @@ def plan_keyframes(
         raise ValueError("plan has no steps")
     if fps <= 0 or seconds_per_step <= 0:
         raise ValueError(f"fps and seconds_per_step must be positive, got {fps} and {seconds_per_step}")
-    hand = plan.hand() if hand is None else hand
+    hand, _ = plan_models(plan, hand, obj)
     k = max(1, int(round(fps * seconds_per_step)))
     times = step_times(plan, seconds_per_step)
 
@@ -553,8 +556,7 @@ def scene_html(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = N
                seconds_per_step: float = 0.8) -> str:
     """The self-contained HTML replay of `plan` as a string (see `write_html`)."""
     meshcat = _import_meshcat()
-    hand = plan.hand() if hand is None else hand
-    obj = plan.object() if obj is None else obj
+    hand, obj = plan_models(plan, hand, obj)
     frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
     vis = meshcat.Visualizer(window=_RecordingWindow())
     _build_scene(vis, plan, hand, obj, frames, fps)
@@ -580,7 +582,7 @@ def write_html(plan: Plan, path: str | Path, hand: Hand | None = None, obj: Obje
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     html = scene_html(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
-    path.write_text(html, encoding="utf-8")
+    atomic_write_text(path, html)
     logger.info("wrote %s (%.0f kB)", path, path.stat().st_size / 1e3)
     return path
 
@@ -596,8 +598,7 @@ def show(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, f
         process; the visualizer is kept in `viewer.LIVE_VIEWERS`.
     """
     meshcat = _import_meshcat()
-    hand = plan.hand() if hand is None else hand
-    obj = plan.object() if obj is None else obj
+    hand, obj = plan_models(plan, hand, obj)
     frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
     with contextlib.redirect_stdout(io.StringIO()):
         vis = meshcat.Visualizer(zmq_url=zmq_url)

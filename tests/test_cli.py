@@ -183,7 +183,7 @@ PROBLEM = Path(__file__).resolve().parents[1] / "problems" / "box_rotate.yaml"
 
 
 def _plan_from_problem(problem, status: str):
-    from regrasp_casadi.grasp import Plan, PlanStep
+    from regrasp_casadi.plan import Plan, PlanStep
 
     g0 = problem.grasp0
     m = len(problem.hand.fingers)
@@ -227,7 +227,7 @@ def test_plan_exit_code_follows_status_and_verify(status, verified, code, tmp_pa
             "--html", str(tmp_path / "r.html")]
     assert cli.main(argv) == code
     assert calls == [{"method": "sd", "max_iters": 7}]
-    from regrasp_casadi.grasp import Plan
+    from regrasp_casadi.plan import Plan
 
     assert Plan.load(out).status == status
     assert (tmp_path / "r.html").stat().st_size > 0
@@ -238,7 +238,7 @@ def test_plan_exit_code_follows_status_and_verify(status, verified, code, tmp_pa
 @pytest.mark.slow
 def test_demo_end_to_end(tmp_path, capsys):
     """The real planner on the built-in problem: files written, exit code consistent with the plan."""
-    from regrasp_casadi.grasp import Plan
+    from regrasp_casadi.plan import Plan
     from regrasp_casadi.verify import verify
 
     code = cli.main(["demo", "--out-dir", str(tmp_path), "--no-progress"])

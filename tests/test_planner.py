@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from regrasp_casadi.finger_gait import FingerGaitNLP
-from regrasp_casadi.grasp import Grasp, Plan
+from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.in_grasp import InGraspNLP
+from regrasp_casadi.plan import Plan
 from regrasp_casadi.planner import PlannerOptions, gait_pattern, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.verify import verify

@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import copy
+import errno
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
 import twofinger as tf
 import yaml
 
-from regrasp_casadi.errors import ProblemFileError
-from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi import files
+from regrasp_casadi.errors import ModelError, ProblemFileError
+from regrasp_casadi.plan import Plan
+from regrasp_casadi.problem import RegraspProblem, clear_model_cache, plan_models
 from regrasp_casadi.transforms import make_T, rpy_to_R
 
 RPY = [0.0, 0.0, 0.3]
@@ -146,3 +151,58 @@ def test_unreadable_files(folder):
     lst = _write(folder, [1, 2], "list.yaml")
     with pytest.raises(ProblemFileError, match="expected a mapping at the top level"):
         RegraspProblem.load(lst)
+
+
+def test_a_save_that_fails_midway_keeps_the_previous_problem_file(folder, tmp_path, monkeypatch):
+    problem = RegraspProblem.load(_write(folder, _valid_doc(), "keep.yaml"))
+    out = problem.save(tmp_path / "copy.yaml")
+    before = out.read_bytes()
+
+    def disk_full(fd, data):
+        os.write(fd, bytes(data[: len(data) // 2]))
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(files, "_write_all", disk_full)
+    with pytest.raises(OSError) as e:
+        problem.save(out)
+    assert e.value.errno == errno.ENOSPC
+    assert out.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["copy.yaml"]
+
+
+# ------------------------------------------------------------------------------ plan_models
+def _plan(hand_spec: dict, object_spec: dict) -> Plan:
+    """A plan with no steps: plan_models reads only its specs."""
+    return Plan(steps=(), goal_contacts_object=np.zeros((2, 3)), goal_T_palm_object=np.eye(4),
+                fingers=("left", "right"), hand_spec=hand_spec, object_spec=object_spec, method="svd",
+                status="invalid_input", status_detail="", iterations=0, iteration_errors=np.zeros(1),
+                timing={}, options={})
+
+
+def test_plan_models_rebuild_from_the_specs_once_per_spec(folder, tmp_path):
+    problem = RegraspProblem.load(_write(folder, _valid_doc(), "models.yaml"))
+    clear_model_cache()
+    plan = _plan(problem.hand.spec(), dict(problem.obj.spec))
+    hand, obj = plan_models(plan)
+    assert hand is not problem.hand and obj is not problem.obj  # rebuilt, not borrowed
+    assert hand.spec() == problem.hand.spec() and obj.spec == problem.obj.spec
+    assert np.array_equal(hand.tip_positions(problem.grasp0.q), problem.hand.tip_positions(problem.grasp0.q))
+    # a second plan with equal specs (here: read back from its file) gets the same models
+    again = Plan.load(plan.save(tmp_path / "p.json"))
+    assert plan_models(again)[0] is hand and plan_models(again)[1] is obj
+    # a changed URDF file is read again; the object spec did not change
+    urdf = Path(problem.hand.spec()["urdf"])
+    st = urdf.stat()
+    os.utime(urdf, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    hand2, obj2 = plan_models(plan)
+    assert hand2 is not hand and obj2 is obj
+    clear_model_cache()
+    assert plan_models(plan)[1] is not obj
+
+
+def test_plan_models_use_the_models_given_without_building(folder):
+    problem = RegraspProblem.load(_write(folder, _valid_doc(), "given.yaml"))
+    plan = _plan({"model": "no_such_hand"}, {"primitive": "no_such_primitive"})
+    assert plan_models(plan, problem.hand, problem.obj) == (problem.hand, problem.obj)
+    with pytest.raises(ModelError, match="no_such_hand"):
+        plan_models(plan, None, problem.obj)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import twofinger as tf
 
-from regrasp_casadi.grasp import Plan, PlanStep
+from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.verify import verify
 
 GOAL = np.array([[-0.03, 0.0, -0.01], [0.03, 0.0, 0.01]])

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from regrasp_casadi.grasp import Plan, PlanStep
+from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.transforms import make_T, rot_axis_angle, rotation_angle
 
 viewer = pytest.importorskip("regrasp_casadi.viewer")
