@@ -2,7 +2,9 @@
 
 Used by grasp generation (generated grasps must be in force closure), by `verify` (the margin of the
 fingers that hold the object during each finger gait, reported as a metric) and by the planner's
-stability-aware gait order. Pure numpy/scipy.
+stability-aware gait order; its primitive wrenches and friction per contact (μ_i = 0 for a sliding,
+frictionless contact) also serve the convex certificates of `regrasp_casadi.certificates`. Pure
+numpy/scipy.
 
     >>> eps = force_closure_quality(contacts_object, normals_object, mu=0.5)   # > 0: force closure
 """
@@ -13,35 +15,95 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
-    "FRICTION_EDGES", "force_closure_quality", "contact_normals", "holding_quality", "torque_reference",
+    "FRICTION_EDGES", "contact_mu", "tangent_basis", "primitive_wrenches", "torque_scale",
+    "force_closure_quality", "contact_normals", "holding_quality", "torque_reference",
 ]
 
 FRICTION_EDGES = 8
 """Edges of the linearised friction cones."""
 
 
+def contact_mu(mu: float | NDArray[np.float64], m: int, sliding: NDArray[np.bool_] | None = None
+               ) -> NDArray[np.float64]:
+    """(m,) friction coefficient of each contact: `mu` (a scalar or (m,) array), 0 where `sliding` (m,)
+    is True (a sliding finger is a frictionless contact: normal force only)."""
+    mu_i = np.broadcast_to(np.asarray(mu, float), (m,)).copy()
+    if np.any(mu_i < 0) or not np.all(np.isfinite(mu_i)):
+        raise ValueError(f"mu: expected finite values >= 0, got {mu_i}")
+    if sliding is not None:
+        mu_i[np.broadcast_to(np.asarray(sliding, bool), (m,))] = 0.0
+    return mu_i
+
+
+def tangent_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Two unit tangents (t1, t2) (3,) with (n, t1, t2) orthonormal, for a unit normal n (3,)."""
+    a = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t1 = np.cross(normal, a)
+    t1 /= np.linalg.norm(t1)
+    return t1, np.cross(normal, t1)
+
+
+def primitive_wrenches(
+    contacts: NDArray[np.float64],
+    normals: NDArray[np.float64],
+    mu: float | NDArray[np.float64],
+    center: NDArray[np.float64],
+    length: float,
+    n_edges: int = FRICTION_EDGES,
+) -> NDArray[np.float64]:
+    """(k, 6) primitive wrenches [f; (c − center) × f / L] of linearised Coulomb cones.
+
+    Contact i (c_i (3,), outward unit normal n_i (3,), object frame, m) with μ_i > 0 contributes the
+    `n_edges` edge forces f_ij = −n_i + μ_i(cos φ_j t1_i + sin φ_j t2_i), each of unit normal force;
+    a frictionless contact (μ_i = 0) contributes the single force −n_i. `mu` is a scalar or (m,).
+    """
+    c = np.asarray(contacts, float).reshape(-1, 3)
+    n = np.asarray(normals, float).reshape(-1, 3)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    mu_i = contact_mu(mu, len(c))
+    phi = 2.0 * np.pi * np.arange(n_edges) / n_edges
+    wrenches = []
+    for ci, ni, mui in zip(c, n, mu_i, strict=True):
+        t1, t2 = tangent_basis(ni)
+        for ph in phi if mui > 0 else phi[:1]:
+            f = -ni + mui * (np.cos(ph) * t1 + np.sin(ph) * t2)
+            wrenches.append(np.concatenate([f, np.cross(ci - center, f) / length]))
+    return np.array(wrenches).reshape(-1, 6)
+
+
+def torque_scale(contacts: NDArray[np.float64], center: NDArray[np.float64] | None,
+                 length: float | None) -> tuple[NDArray[np.float64], float]:
+    """Torque reference (3,) and characteristic length L, m: the given ones, else the mean of the
+    contacts (m, 3) and their largest distance from it (at least 1e-9 m)."""
+    c = np.asarray(contacts, float).reshape(-1, 3)
+    center = c.mean(axis=0) if center is None else np.asarray(center, float)
+    if length is None:
+        length = float(np.max(np.linalg.norm(c - center, axis=1))) if len(c) else 0.0
+    return center, max(float(length), 1e-9)
+
+
 def force_closure_quality(
     contacts: NDArray[np.float64],
     normals: NDArray[np.float64],
-    mu: float = 0.5,
+    mu: float | NDArray[np.float64] = 0.5,
     center: NDArray[np.float64] | None = None,
     length: float | None = None,
     n_edges: int = FRICTION_EDGES,
 ) -> float:
     """Ferrari–Canny ε of frictional point contacts (linearised cones); > 0 ⇔ force closure.
 
-    Each contact i pushes along the inward normal −n_i within a Coulomb cone of half-angle atan μ,
-    linearised by `n_edges` edge forces f_ij = −n_i + μ(cos φ_j t1_i + sin φ_j t2_i). Their wrenches
-    w_ij = [f_ij; (c_i − center) × f_ij / L] are scaled by the characteristic length L so forces and
-    torques are comparable. The grasp is in force closure iff the origin lies strictly inside the
-    convex hull of the w_ij (their positive span is R⁶). ε is the signed distance from the origin to
+    Each contact i pushes along the inward normal −n_i within a Coulomb cone of half-angle atan μ_i,
+    linearised by `n_edges` edge forces (see `primitive_wrenches`; one force −n_i when μ_i = 0). Their
+    wrenches w_ij = [f_ij; (c_i − center) × f_ij / L] are scaled by the characteristic length L so
+    forces and torques are comparable. The grasp is in force closure iff the origin lies strictly inside
+    the convex hull of the w_ij (their positive span is R⁶). ε is the signed distance from the origin to
     the hull boundary: the radius of the largest wrench ball the grasp resists with unit total normal
     force (> 0 inside, ≤ 0 outside; 0 when the wrenches span less than 6 dimensions).
 
     Args:
         contacts: (m, 3) contact points, object frame, m.
         normals: (m, 3) outward unit surface normals at the contacts, object frame.
-        mu: friction coefficient.
+        mu: friction coefficient, a scalar or (m,) per contact (0: frictionless, e.g. a sliding finger).
         center: (3,) torque reference point, object frame, m (default: mean of the contacts).
         length: characteristic length L, m (default: max distance of a contact from `center`).
         n_edges: friction-cone edges.
@@ -49,27 +111,11 @@ def force_closure_quality(
     Returns:
         ε (dimensionless with L-scaled torques).
     """
-    c = np.asarray(contacts, float).reshape(-1, 3)
-    n = np.asarray(normals, float).reshape(-1, 3)
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    center = c.mean(axis=0) if center is None else np.asarray(center, float)
-    if length is None:
-        length = float(np.max(np.linalg.norm(c - center, axis=1)))
-    length = max(float(length), 1e-9)
-    phi = 2.0 * np.pi * np.arange(n_edges) / n_edges
-    wrenches = []
-    for ci, ni in zip(c, n, strict=True):
-        a = np.array([1.0, 0.0, 0.0]) if abs(ni[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        t1 = np.cross(ni, a)
-        t1 /= np.linalg.norm(t1)
-        t2 = np.cross(ni, t1)
-        for ph in phi:
-            f = -ni + mu * (np.cos(ph) * t1 + np.sin(ph) * t2)
-            wrenches.append(np.concatenate([f, np.cross(ci - center, f) / length]))
+    center, length = torque_scale(contacts, center, length)
+    W = primitive_wrenches(contacts, normals, mu, center, length, n_edges)
     from scipy.spatial import ConvexHull, QhullError  # imported here: `import regrasp_casadi` stays light
 
-    W = np.array(wrenches)
-    if np.linalg.matrix_rank(W - W.mean(axis=0), tol=1e-9) < 6:
+    if len(W) < 7 or np.linalg.matrix_rank(W - W.mean(axis=0), tol=1e-9) < 6:
         return 0.0
     try:
         hull = ConvexHull(W)
