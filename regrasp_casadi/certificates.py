@@ -438,7 +438,7 @@ def certify_step(
 
 def step_certificates(
     plan: Any,
-    obj: Any,
+    obj: Any | None,
     kind: Kind = "force_closure",
     mu: float = 0.5,
     *,
@@ -459,11 +459,15 @@ def step_certificates(
     `density`; gravity is `gravity_palm` (3,), m/s², palm frame.
 
     Args:
-        plan: a `Plan`; obj: its object model (with `.mesh`); hand: its hand (default `plan.hand()`).
+        plan: a `Plan`; obj, hand: its object model (with `.mesh`) and hand (None: rebuilt from the
+            plan's specs by `problem.plan_models`).
     Returns:
         One Certificate per step, `plan.steps` order.
     """
-    hand = plan.hand() if hand is None else hand
+    if hand is None or obj is None:
+        from regrasp_casadi.problem import plan_models  # imports casadi: only when a model is missing
+
+        hand, obj = plan_models(plan, hand, obj)
     com, length = torque_reference(obj.mesh)
     m_kg = object_mass(obj.mesh, mass, density) if kind == "gravity" else None
     fingers = list(plan.fingers)
