@@ -120,6 +120,6 @@ def test_ycb_mesh_pieces_contain_surface(name):
     obj = ObjectModel.from_mesh(path)
     pts, _ = obj.sample_surface(2000, seed=0)
     assert np.abs(obj.exact_signed_distance(pts)).max() <= 1e-9
-    for pc in obj.pieces:
-        assert len(pc.offsets) <= convex.DEFAULT_MAX_PLANES
+    for pc in obj.pieces:  # face planes capped, then at most DEFAULT_EDGE_PLANES edge/vertex planes added
+        assert len(pc.offsets) <= convex.DEFAULT_MAX_PLANES + convex.DEFAULT_EDGE_PLANES
         assert np.all(pc.hard_distance(pc.vertices) <= 1e-12)
