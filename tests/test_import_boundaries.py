@@ -91,7 +91,7 @@ def box_shift_plan(tmp_path_factory) -> Path:
 def test_verify_of_a_saved_plan_loads_no_smooth_side(box_shift_plan):
     loaded = _loaded_forbidden(f"""
         import regrasp_casadi.verify
-        from regrasp_casadi.grasp import Plan
+        from regrasp_casadi.plan import Plan
 
         report = regrasp_casadi.verify.verify(Plan.load({str(box_shift_plan)!r}))
         assert report.ok, report.summary()
