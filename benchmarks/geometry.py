@@ -51,8 +51,8 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from machine import machine_info  # noqa: E402
 
-from regrasp_casadi import geometry  # noqa: E402
-from regrasp_casadi.geometry import ObjectModel  # noqa: E402
+from regrasp_casadi import convex, signed_distance  # noqa: E402
+from regrasp_casadi.objects import ObjectModel  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 YCB = ROOT.parent / "shared" / "reference" / "ycb"
@@ -103,10 +103,10 @@ def quant(e: np.ndarray) -> dict:
 
 def evaluate(name: str, make, n: int) -> dict:
     t0 = time.perf_counter()
-    n_before = geometry.decomposition_count()
+    n_before = convex.decomposition_count()
     obj = make()
     build = time.perf_counter() - t0
-    decomposed = geometry.decomposition_count() > n_before
+    decomposed = convex.decomposition_count() > n_before
     rng = np.random.default_rng(0)
     pts, normals = obj.sample_surface(n, seed=0)
     shell_out = pts + normals * rng.uniform(0.0, 0.03, (n, 1))
@@ -120,7 +120,7 @@ def evaluate(name: str, make, n: int) -> dict:
     sm_shell = obj.signed_distance(shell)
     hard_surf = np.stack([pc.hard_distance(pts) for pc in obj.pieces]).min(axis=0)
     # the same pieces with every hull facet (no plane cap): separates decomposition and simplification
-    full = [geometry.simplify_piece(pc.vertices, 10**9) for pc in obj.pieces]
+    full = [convex.simplify_piece(pc.vertices, 10**9) for pc in obj.pieces]
     hull_surf = np.stack([pc.hard_distance(pts) for pc in full]).min(axis=0)
     out_mask, in_mask = ex_shell > 0, ex_shell < 0
     sign_err = np.sign(sm_shell) != np.sign(ex_shell)
@@ -133,7 +133,7 @@ def evaluate(name: str, make, n: int) -> dict:
         "k_max": int(k_max),
         "build_s": build,
         "decomposed": bool(decomposed),
-        "tau_m": geometry.DEFAULT_TAU,
+        "tau_m": signed_distance.DEFAULT_TAU,
         "bias_bound_mm": obj.bias_bound * 1e3,
         "exact_self_distance_max_m": float(np.abs(ex_surf).max()),
         "exact_time_per_point_us": exact_time * 1e6,

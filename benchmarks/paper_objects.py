@@ -139,9 +139,9 @@ def problem_paths(problems_dir: pathlib.Path, name: str, n_pairs: int) -> list[p
 
 def generate_pairs(name: str, n_pairs: int, problems_dir: str) -> tuple[str, float, list[str]]:
     """Write the missing problem files of `name` (same seed → same pairs). Returns (name, seconds, paths)."""
-    from regrasp_casadi.geometry import ObjectModel
     from regrasp_casadi.grasp_gen import generate_regrasp_pairs
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.problem import RegraspProblem
 
     paths = problem_paths(pathlib.Path(problems_dir), name, n_pairs)

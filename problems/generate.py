@@ -11,7 +11,7 @@ criterion (e.g. `box_rotate`: the largest object rotation between the two grasps
     python problems/generate.py            # rewrites every file below
     python problems/generate.py box_rotate # only that one
 
-The grasps come out of IPOPT solves on the smooth signed distance of `geometry.py`, so a change of that
+The grasps come out of IPOPT solves on the smooth signed distance of `signed_distance.py`, so a change of that
 model (planes, temperature) gives other — equally valid — files; `tests/test_problems.py` checks every
 shipped file with exact distances, whatever produced it.
 """
@@ -24,9 +24,9 @@ import time
 
 import numpy as np
 
-from regrasp_casadi.geometry import ObjectModel
 from regrasp_casadi.grasp_gen import generate_regrasp_pairs, grasp_quality
 from regrasp_casadi.hand import Hand
+from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.transforms import rotation_angle
 

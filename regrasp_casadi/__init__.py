@@ -20,7 +20,7 @@ __version__ = "0.1.0"
 
 _LAZY = {
     "Hand": "regrasp_casadi.hand",
-    "ObjectModel": "regrasp_casadi.geometry",
+    "ObjectModel": "regrasp_casadi.objects",
     "Grasp": "regrasp_casadi.grasp",
     "Plan": "regrasp_casadi.plan",
     "PlanStep": "regrasp_casadi.plan",
@@ -57,10 +57,10 @@ if TYPE_CHECKING:  # pragma: no cover
         RegraspError,
     )
     from regrasp_casadi.finger_gait import FingerGaitNLP  # noqa: F401
-    from regrasp_casadi.geometry import ObjectModel  # noqa: F401
     from regrasp_casadi.grasp import Grasp  # noqa: F401
     from regrasp_casadi.hand import Hand  # noqa: F401
     from regrasp_casadi.in_grasp import InGraspNLP  # noqa: F401
+    from regrasp_casadi.objects import ObjectModel  # noqa: F401
     from regrasp_casadi.plan import Plan, PlanStep  # noqa: F401
     from regrasp_casadi.planner import PlannerOptions, plan_regrasp  # noqa: F401
     from regrasp_casadi.problem import RegraspProblem  # noqa: F401

@@ -220,8 +220,8 @@ def cmd_grasps(args: argparse.Namespace) -> int:
         problem = RegraspProblem.load(src)
         hand, obj = problem.hand, problem.obj
     else:
-        from regrasp_casadi.geometry import ObjectModel
         from regrasp_casadi.hand import Hand
+        from regrasp_casadi.objects import ObjectModel
 
         if not src.is_file():
             raise _UserError(f"{src}: no such mesh or problem file")
@@ -267,9 +267,9 @@ def _demo_problem():
 
     if DEMO_PROBLEM.is_file():
         return RegraspProblem.load(DEMO_PROBLEM)
-    from regrasp_casadi.geometry import ObjectModel
     from regrasp_casadi.grasp_gen import generate_regrasp_pairs
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
 
     logging.getLogger(__name__).info("%s missing: generating a box regrasp problem", DEMO_PROBLEM)
     hand, obj = Hand.allegro_right(), ObjectModel.box((0.06, 0.06, 0.12))

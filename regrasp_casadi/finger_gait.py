@@ -14,13 +14,14 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
-from regrasp_casadi import terms
-from regrasp_casadi.geometry import DEFAULT_TAU, LOCAL_PIECES, LOCAL_PLANES
+from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
+from regrasp_casadi.signed_distance import DEFAULT_TAU
 
 if TYPE_CHECKING:
-    from regrasp_casadi.geometry import ObjectModel
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
 
 __all__ = ["FingerGaitOptions", "FingerGaitResult", "FingerGaitNLP"]
 
@@ -146,7 +147,7 @@ class FingerGaitNLP:
         else:
             s_obj = ca.SX(3, 0)
             sd_l = ca.SX(0, 1)
-        sd_tip = terms.local_signed_distance(N_tip, h_tip, c_obj, n_local, tau)
+        sd_tip = signed_distance.local_signed_distance(N_tip, h_tip, c_obj, n_local, tau)
 
         # objective
         f = _CM2 * ca.sumsqr(c_obj - c_goal)

@@ -23,8 +23,8 @@ from regrasp_casadi.plan import frozen_array
 from regrasp_casadi.transforms import inv_T, transform_points
 
 if TYPE_CHECKING:  # pragma: no cover
-    from regrasp_casadi.geometry import ObjectModel
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
 
 __all__ = ["Grasp"]
 

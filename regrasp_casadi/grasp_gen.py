@@ -47,9 +47,9 @@ from scipy.spatial import cKDTree
 from regrasp_casadi import solver as _solver
 from regrasp_casadi import terms
 from regrasp_casadi.errors import GraspError
-from regrasp_casadi.geometry import ObjectModel
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.hand import Hand
+from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.stability import FRICTION_EDGES, force_closure_quality, torque_reference
 from regrasp_casadi.transforms import exp_so3, inv_T, make_T, transform_points
 

@@ -18,14 +18,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import ConvexHull
 
+from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
-from regrasp_casadi import terms
-from regrasp_casadi.geometry import DEFAULT_TAU, LOCAL_PIECES, LOCAL_PLANES
+from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
+from regrasp_casadi.signed_distance import DEFAULT_TAU
 from regrasp_casadi.transforms import interpolate_pose, log_SO3, make_T
 
 if TYPE_CHECKING:
-    from regrasp_casadi.geometry import ObjectModel
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
 
 __all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "workspace_hull"]
 
@@ -226,14 +227,15 @@ class InGraspNLP:
             self.hulls = [workspace_hull(hand, f) for f in hand.fingers]
             e_des = 0
             for r, hull in enumerate(self.hulls):
-                d = terms.hull_signed_distance(hull.normals, hull.offsets, R @ g_tips[:, r] + t, o.tau_hull)
+                d = signed_distance.hull_signed_distance(hull.normals, hull.offsets, R @ g_tips[:, r] + t,
+                                                         o.tau_hull)
                 d = d + o.sd_margin
                 e_des += _MM * terms.softplus(d, o.tau_hull)
         f = e_des + o.k_pos * e_pos + o.k_orient * e_or
         # constraints: non-tip spheres keep β; the tips stay on the surface
         s_obj = terms.to_object_frame(R, t, ca.horzcat(hand.sphere_centers_function(None)(q), tips_palm))
-        sd_tips = [terms.local_signed_distance(N_tips[:, r], h_tips[:, r], s_obj[:, k + r], n_local, tau)
-                   for r in range(m)]
+        sd_tips = [signed_distance.local_signed_distance(N_tips[:, r], h_tips[:, r], s_obj[:, k + r], n_local,
+                                                         tau) for r in range(m)]
         sd_l = ca.vertcat(terms.smooth_signed_distances(sd_coarse, s_obj[:, :k]), *sd_tips)
         radii_all = np.concatenate([radii, np.full(m, hand.tip_radius)])
         g = _MM * (sd_l + delta_l - ca.DM(radii_all))

@@ -25,9 +25,9 @@ from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, kabsch, rotation_angle
 
 if TYPE_CHECKING:
-    from regrasp_casadi.geometry import ObjectModel
     from regrasp_casadi.grasp import Grasp
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
 
 __all__ = ["PlannerOptions", "plan_regrasp", "gait_pattern", "clear_nlp_cache"]
 

@@ -31,8 +31,8 @@ from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.transforms import make_T, rpy_to_R
 
 if TYPE_CHECKING:  # pragma: no cover
-    from regrasp_casadi.geometry import ObjectModel
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.plan import Plan
 
 __all__ = ["RegraspProblem", "PROBLEM_SCHEMA_VERSION", "plan_models", "clear_model_cache"]
@@ -140,7 +140,7 @@ def _load_hand(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> Hand:
 
 
 def _load_object(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> ObjectModel:
-    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.objects import ObjectModel
 
     if not isinstance(v, dict):
         raise ctx.error("object", f"expected a mapping (primitive: ... or mesh: ...), got {type(v).__name__}")
@@ -359,7 +359,7 @@ def plan_models(
 
         hand = _cached_model("hand", plan.hand_spec, "urdf", Hand.from_spec)
     if obj is None:
-        from regrasp_casadi.geometry import ObjectModel
+        from regrasp_casadi.objects import ObjectModel
 
         obj = _cached_model("object", plan.object_spec, "mesh", ObjectModel.from_spec)
     return hand, obj

@@ -2,7 +2,7 @@
 
 Every function returns a watertight `trimesh.Trimesh` in metres, winding outward (volume > 0), centred
 at (or near) its centre of mass, so that examples and tests need no mesh files. `ObjectModel`'s
-classmethods of the same names wrap them (see `regrasp_casadi.geometry`).
+classmethods of the same names wrap them (see `regrasp_casadi.objects`).
 
     >>> from regrasp_casadi.shapes import banana_mesh
     >>> m = banana_mesh()

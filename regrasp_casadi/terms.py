@@ -15,8 +15,6 @@ __all__ = [
     "pose_from_params",
     "to_object_frame",
     "smooth_signed_distances",
-    "hull_signed_distance",
-    "local_signed_distance",
     "softplus",
     "rotation_error_sq",
     "substitute_joints",
@@ -49,37 +47,6 @@ def smooth_signed_distances(sd_function: ca.Function, p_object: ca.SX) -> ca.SX:
     """Smooth signed distance (k,) of each column of `p_object` (3, k) to the object, m."""
     k = p_object.shape[1]
     return ca.vertcat(*[sd_function(p_object[:, i]) for i in range(k)])
-
-
-def hull_signed_distance(normals: NDArray[np.float64], offsets: NDArray[np.float64], p: ca.SX,
-                         tau: float) -> ca.SX:
-    """Smooth signed distance (1,) of point `p` (3,) to the convex polytope {x : n_i·x ≤ h_i}.
-
-    d(p) = τ · log Σ_i exp((n_i·p − h_i)/τ), the max of the plane distances subtracted first for
-    numerical safety; exact inside up to τ·log k, a lower bound of the Euclidean distance outside.
-    """
-    s = ca.DM(normals) @ p - ca.DM(offsets)
-    m = ca.mmax(s)
-    return m + tau * ca.log(ca.sum1(ca.exp((s - m) / tau)))
-
-
-def local_signed_distance(normals: ca.SX, offsets: ca.SX, p: ca.SX, n_pieces: int, tau: float) -> ca.SX:
-    """Smooth signed distance (1,) of `p` (3,) from local plane sets passed as parameters.
-
-    `normals` is (n_pieces·k·3,) and `offsets` (n_pieces·k,), laid out as `ObjectModel.local_planes`
-    returns them (C order). Per piece τ·LSE((n_i·p − h_i)/τ), then a smooth minimum over the pieces:
-    the same model as `ObjectModel.signed_distance_function`, restricted to the planes near `p`.
-    """
-    k = offsets.shape[0] // n_pieces
-    d_pieces = []
-    for j in range(n_pieces):
-        N = ca.reshape(normals[3 * k * j: 3 * k * (j + 1)], 3, k).T  # (k, 3): rows are normals
-        y = (N @ p - offsets[k * j: k * (j + 1)]) / tau
-        m = ca.mmax(y)
-        d_pieces.append(m + ca.log(ca.sum1(ca.exp(y - m))))
-    z = -ca.vertcat(*d_pieces)
-    m = ca.mmax(z)
-    return -tau * (m + ca.log(ca.sum1(ca.exp(z - m))))
 
 
 def softplus(x: ca.SX, tau: float) -> ca.SX:

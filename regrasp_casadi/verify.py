@@ -34,8 +34,8 @@ from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
 
 if TYPE_CHECKING:  # pragma: no cover
-    from regrasp_casadi.geometry import ObjectModel
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.plan import Plan
 
 __all__ = ["Violation", "VerifyReport", "verify", "CHECKS"]

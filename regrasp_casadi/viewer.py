@@ -43,8 +43,8 @@ from regrasp_casadi.files import atomic_write_text
 from regrasp_casadi.problem import plan_models
 
 if TYPE_CHECKING:  # pragma: no cover
-    from regrasp_casadi.geometry import ObjectModel
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.plan import Plan
 
 __all__ = ["Keyframe", "plan_keyframes", "step_times", "write_html", "show", "scene_html",

@@ -28,7 +28,7 @@ def reference_dir() -> Path:
 @pytest.fixture(scope="session")
 def box_object():
     """Generated box, 0.05 × 0.09 × 0.175 m (YCB sugar-box size), one convex piece of 6 planes."""
-    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.objects import ObjectModel
 
     return ObjectModel.box((0.05, 0.09, 0.175))
 
@@ -36,6 +36,18 @@ def box_object():
 @pytest.fixture(scope="session")
 def cylinder_object():
     """Generated cylinder about z, radius 0.035 m, height 0.2 m, 32 sides (34 planes)."""
-    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.objects import ObjectModel
 
     return ObjectModel.cylinder(0.035, 0.2)
+
+
+@pytest.fixture(scope="session")
+def banana_small(tmp_path_factory):
+    """A low-resolution banana (coacd, a few convex pieces) decomposed into a private cache."""
+    from regrasp_casadi.objects import ObjectModel
+
+    mp = pytest.MonkeyPatch()
+    mp.setenv("REGRASP_CACHE_DIR", str(tmp_path_factory.mktemp("cache")))
+    obj = ObjectModel.banana(rings=10, sections=8)
+    mp.undo()
+    return obj

@@ -8,13 +8,13 @@ import pytest
 from grasp_checks import contact_normals, exact_checks, force_closure_lp
 
 from regrasp_casadi.errors import GraspError
-from regrasp_casadi.geometry import ObjectModel
 from regrasp_casadi.grasp_gen import (
     force_closure_quality,
     generate_grasps,
     generate_regrasp_pairs,
     grasp_quality,
 )
+from regrasp_casadi.objects import ObjectModel
 
 BETA = 0.001
 

@@ -56,7 +56,7 @@ def make_plan(hand, n_steps: int = 3) -> Plan:
 
 @pytest.fixture(scope="module")
 def obj():
-    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.objects import ObjectModel
 
     return ObjectModel.box((0.05, 0.06, 0.12))
 

@@ -37,7 +37,7 @@ def test_html_replay_draws_hand_and_object(hand, tmp_path):
     from PIL import Image
 
     from regrasp_casadi import viewer
-    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.objects import ObjectModel
 
     plan = make_plan(hand)
     html = viewer.write_html(plan, tmp_path / "replay.html", hand=hand,

@@ -64,7 +64,7 @@ def make_hand(folder: Path):
 
 
 def make_box():
-    from regrasp_casadi.geometry import ObjectModel
+    from regrasp_casadi.objects import ObjectModel
 
     return ObjectModel.box(BOX_EXTENTS)
 

@@ -1,0 +1,414 @@
+"""Object models: `ObjectModel`, a watertight mesh with its convex pieces and its distances.
+
+An `ObjectModel` is built from a mesh file (loaded and repaired here), an in-memory mesh or a generated
+primitive (box, cylinder, sphere, capsule, bottle, banana; see `shapes`), and carries a `spec` that
+rebuilds it (`ObjectModel.from_spec`). It is a facade over three modules:
+
+* `regrasp_casadi.convex`: the convex pieces (coacd, cached on disk by mesh content) and local plane sets;
+* `regrasp_casadi.signed_distance`: the smooth CasADi signed distance (full and coarse), built once per
+  temperature and cached on the model;
+* `regrasp_casadi.exact_distance`: the exact mesh distance in millimetres (built on first use).
+
+CasADi and the smooth side are imported only when a smooth distance is asked for, so exact-only users
+(`verify`) never load them.
+
+    >>> obj = ObjectModel.cylinder(0.035, 0.2)
+    >>> f = obj.signed_distance_function()      # p_object (3,1) -> d (1,1), m
+    >>> float(f([0.05, 0, 0]))                  # ≈ 0.015
+    >>> obj.exact_signed_distance([[0.05, 0, 0]])
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import pathlib
+from typing import TYPE_CHECKING
+
+import numpy as np
+import trimesh
+from numpy.typing import ArrayLike, NDArray
+
+from regrasp_casadi import shapes
+from regrasp_casadi.convex import (
+    DEFAULT_MAX_PIECES,
+    DEFAULT_MAX_PLANES,
+    DEFAULT_THRESHOLD,
+    LOCAL_PIECES,
+    LOCAL_PLANES,
+    ConvexPiece,
+    coarse_pieces,
+    convex_pieces,
+    select_local_planes,
+)
+from regrasp_casadi.errors import MeshError
+from regrasp_casadi.exact_distance import ExactDistance
+
+if TYPE_CHECKING:  # pragma: no cover
+    import casadi as ca
+
+__all__ = ["ObjectModel", "load_mesh"]
+
+log = logging.getLogger(__name__)
+
+_MAX_EXTENT_M = 2.0
+
+
+def _read_mesh(path: pathlib.Path) -> tuple[trimesh.Trimesh, bytes]:
+    """The raw triangles of a mesh file and the file's bytes; MeshError naming the file if unusable."""
+    if not path.is_file():
+        raise MeshError(f"{path}: mesh file not found")
+    data = path.read_bytes()
+    if not data.strip():
+        raise MeshError(f"{path}: mesh file is empty")
+    try:
+        loaded = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as exc:
+        raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from exc
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise MeshError(f"{path}: no triangles found in the file")
+    if not np.all(np.isfinite(loaded.vertices)):
+        raise MeshError(f"{path}: mesh has NaN or infinite vertex coordinates")
+    return loaded, data
+
+
+def _repair(mesh: trimesh.Trimesh, path: pathlib.Path) -> trimesh.Trimesh:
+    """Merge vertices, drop degenerate/duplicate faces, wind outwards (in place); MeshError if not solid."""
+    mesh.merge_vertices()
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.update_faces(mesh.unique_faces())
+    mesh.remove_unreferenced_vertices()
+    if not mesh.is_watertight:
+        raise MeshError(f"{path}: mesh is not watertight after merging vertices (open or non-manifold)")
+    trimesh.repair.fix_normals(mesh)
+    if mesh.volume < 0:
+        mesh.invert()
+    if not mesh.volume > 0:
+        raise MeshError(f"{path}: mesh encloses no volume")
+    return mesh
+
+
+def load_mesh(path, scale: float = 1.0) -> tuple[trimesh.Trimesh, str]:
+    """Load an OBJ/STL/PLY/GLB mesh, scale it to metres and repair it.
+
+    Repairs: merged vertices, removed degenerate and duplicate faces, consistent outward winding.
+
+    Args:
+        path: mesh file (resolved to an absolute path).
+        scale: factor applied to the file's coordinates to get metres (0.001 for millimetres).
+
+    Returns:
+        The watertight mesh (metres, file frame) and the sha256 of the file's bytes.
+
+    Raises:
+        MeshError: naming the file, if it is missing, empty or unreadable, has non-finite vertices,
+            is not watertight after repair, or looks like millimetres (largest extent > 2 m).
+    """
+    path = pathlib.Path(path).expanduser().resolve()
+    loaded, data = _read_mesh(path)
+    mesh = trimesh.Trimesh(np.asarray(loaded.vertices, float) * float(scale), loaded.faces, process=False)
+    _repair(mesh, path)
+    ext = float(np.max(mesh.extents))
+    if ext > _MAX_EXTENT_M:
+        raise MeshError(f"{path}: largest extent is {ext:.4g} m after scale={scale}; the file looks like "
+                        "millimetres — pass scale=0.001")
+    return mesh, hashlib.sha256(data).hexdigest()
+
+
+class ObjectModel:
+    """A rigid object: watertight mesh, convex pieces, smooth (CasADi) and exact signed distances.
+
+    Attributes:
+        name: object name (free text; CasADi function names are made valid from it).
+        mesh: watertight `trimesh.Trimesh`, metres, object frame.
+        pieces: convex pieces (half-space form), object frame.
+        spec: how to rebuild the object (`ObjectModel.from_spec`).
+    """
+
+    def __init__(self, name: str, mesh: trimesh.Trimesh, pieces: tuple[ConvexPiece, ...], spec: dict):
+        self.name = name
+        self.mesh = mesh
+        self.pieces = tuple(pieces)
+        self.spec = dict(spec)
+        self._sd_functions: dict[tuple, ca.Function] = {}
+        self._sd_maps: dict[tuple[float, int], ca.Function] = {}
+        self._exact: ExactDistance | None = None
+
+    def __repr__(self) -> str:
+        planes = sum(len(p.offsets) for p in self.pieces)
+        return (f"ObjectModel({self.name!r}, {len(self.mesh.faces)} faces, {len(self.pieces)} pieces, "
+                f"{planes} planes)")
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_trimesh(
+        cls,
+        mesh: trimesh.Trimesh,
+        name: str = "mesh",
+        convex: bool | None = None,
+        threshold: float = DEFAULT_THRESHOLD,
+        max_planes_per_piece: int = DEFAULT_MAX_PLANES,
+        max_pieces: int = DEFAULT_MAX_PIECES,
+        spec: dict | None = None,
+    ) -> ObjectModel:
+        """Build from a watertight mesh in metres (no repair; see `from_mesh` for files).
+
+        Args:
+            mesh: watertight mesh, metres, object frame.
+            name: object name.
+            convex: True: one piece, the hull; False: coacd; None: decide by `mesh.is_convex`.
+            threshold: coacd concavity threshold.
+            max_planes_per_piece: plane cap of each piece.
+            max_pieces: cap on coacd pieces.
+            spec: rebuild recipe; default an inline copy of the mesh.
+        """
+        if convex is None:
+            convex = bool(mesh.is_convex)
+        pieces = convex_pieces(mesh, convex, threshold, max_planes_per_piece, max_pieces)
+        if spec is None:
+            spec = {"inline_mesh": {"vertices": mesh.vertices.tolist(), "faces": mesh.faces.tolist()}}
+            if not convex:
+                spec.update(threshold=threshold)
+            if max_planes_per_piece != DEFAULT_MAX_PLANES:
+                spec.update(max_planes_per_piece=max_planes_per_piece)
+        return cls(name, mesh, pieces, spec)
+
+    @classmethod
+    def from_mesh(
+        cls,
+        path,
+        scale: float = 1.0,
+        name: str | None = None,
+        threshold: float = DEFAULT_THRESHOLD,
+        max_planes_per_piece: int = DEFAULT_MAX_PLANES,
+        max_pieces: int = DEFAULT_MAX_PIECES,
+    ) -> ObjectModel:
+        """Load an OBJ/STL/PLY/GLB mesh (metres after `scale`), repair it and decompose it.
+
+        Repairs: merged vertices, removed degenerate and duplicate faces, consistent outward winding.
+
+        Args:
+            path: mesh file.
+            scale: factor applied to the file's coordinates to get metres (0.001 for millimetres).
+            name: object name (default: the file's parent folder or stem).
+            threshold: coacd concavity threshold (0.02 gives finer pieces, see benchmarks/geometry.py).
+            max_planes_per_piece: plane cap of each convex piece.
+            max_pieces: cap on the number of coacd pieces.
+
+        Raises:
+            MeshError: naming the file, if it is missing, empty or unreadable, has non-finite vertices,
+                is not watertight after repair, or looks like millimetres (largest extent > 2 m).
+        """
+        path = pathlib.Path(path).expanduser().resolve()
+        mesh, sha256 = load_mesh(path, scale)
+        spec = {"mesh": str(path), "scale": float(scale), "sha256": sha256}
+        if threshold != DEFAULT_THRESHOLD:
+            spec["threshold"] = threshold
+        if max_planes_per_piece != DEFAULT_MAX_PLANES:
+            spec["max_planes_per_piece"] = max_planes_per_piece
+        if name is None:
+            name = path.parent.name if path.stem == "mesh" else path.stem
+        return cls.from_trimesh(mesh, name, None, threshold, max_planes_per_piece, max_pieces, spec)
+
+    @classmethod
+    def _primitive(cls, mesh, name, spec, max_planes, convex=True, threshold=DEFAULT_THRESHOLD):
+        if max_planes != DEFAULT_MAX_PLANES:
+            spec["max_planes_per_piece"] = max_planes
+        if not convex and threshold != DEFAULT_THRESHOLD:
+            spec["threshold"] = threshold
+        return cls.from_trimesh(mesh, name, convex, threshold, max_planes, spec=spec)
+
+    @classmethod
+    def box(cls, extents=(0.05, 0.09, 0.175), max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
+        """Box centred at the origin; extents (3,) full sides, m (default: YCB sugar box)."""
+        ext = [float(e) for e in extents]
+        return cls._primitive(shapes.box_mesh(ext), "box", {"primitive": "box", "extents": ext},
+                              max_planes_per_piece)
+
+    @classmethod
+    def cylinder(cls, radius: float = 0.0375, height: float = 0.25, sections: int = 32,
+                 max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
+        """Cylinder about z centred at the origin, m (default: YCB chips can); `sections` sides."""
+        spec = {"primitive": "cylinder", "radius": float(radius), "height": float(height)}
+        if sections != 32:
+            spec["sections"] = int(sections)
+        return cls._primitive(shapes.cylinder_mesh(radius, height, sections), "cylinder", spec,
+                              max_planes_per_piece)
+
+    @classmethod
+    def sphere(cls, radius: float = 0.035, max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
+        """Icosphere (320 faces) centred at the origin, m."""
+        return cls._primitive(shapes.sphere_mesh(radius), "sphere",
+                              {"primitive": "sphere", "radius": float(radius)}, max_planes_per_piece)
+
+    @classmethod
+    def capsule(cls, radius: float = 0.02, height: float = 0.1,
+                max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
+        """Capsule about z centred at the origin; `height` between the cap centres, m."""
+        return cls._primitive(shapes.capsule_mesh(radius, height), "capsule",
+                              {"primitive": "capsule", "radius": float(radius), "height": float(height)},
+                              max_planes_per_piece)
+
+    @classmethod
+    def bottle(cls, body_radius: float = 0.03, body_height: float = 0.12, shoulder_height: float = 0.03,
+               neck_radius: float = 0.012, neck_height: float = 0.04, sections: int = 32,
+               threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
+               ) -> ObjectModel:
+        """Bottle: solid of revolution (body, shoulder, neck), 0.19 m tall; see `shapes.bottle_mesh`."""
+        dims = {"body_radius": float(body_radius), "body_height": float(body_height),
+                "shoulder_height": float(shoulder_height), "neck_radius": float(neck_radius),
+                "neck_height": float(neck_height), "sections": int(sections)}
+        return cls._primitive(shapes.bottle_mesh(**dims), "bottle", {"primitive": "bottle", **dims},
+                              max_planes_per_piece, convex=False, threshold=threshold)
+
+    @classmethod
+    def banana(cls, length: float = 0.18, thickness: float = 0.036, bend_radius: float = 0.13,
+               rings: int = 24, sections: int = 16, threshold: float = DEFAULT_THRESHOLD,
+               max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
+        """Banana-like curved, tapered tube, 0.18 m long and 0.036 m thick; see `shapes.banana_mesh`."""
+        dims = {"length": float(length), "thickness": float(thickness), "bend_radius": float(bend_radius),
+                "rings": int(rings), "sections": int(sections)}
+        return cls._primitive(shapes.banana_mesh(**dims), "banana", {"primitive": "banana", **dims},
+                              max_planes_per_piece, convex=False, threshold=threshold)
+
+    @classmethod
+    def from_spec(cls, spec: dict, base_dir=None) -> ObjectModel:
+        """Rebuild from `obj.spec`; a relative "mesh" path is resolved against `base_dir`.
+
+        Raises:
+            MeshError: unknown primitive or unreadable mesh.
+        """
+        spec = dict(spec)
+        opts = {k: spec.pop(k) for k in ("threshold", "max_planes_per_piece") if k in spec}
+        if "mesh" in spec:
+            path = pathlib.Path(spec["mesh"]).expanduser()
+            if not path.is_absolute() and base_dir is not None:
+                path = pathlib.Path(base_dir) / path
+            obj = cls.from_mesh(path, scale=float(spec.get("scale", 1.0)), **opts)
+            sha = spec.get("sha256")
+            if sha and obj.spec["sha256"] != sha:
+                log.warning("%s: content differs from the spec's sha256 (file changed since)", path)
+            return obj
+        if "inline_mesh" in spec:
+            m = trimesh.Trimesh(spec["inline_mesh"]["vertices"], spec["inline_mesh"]["faces"], process=False)
+            return cls.from_trimesh(m, spec=None, **opts)
+        kind = spec.pop("primitive", None)
+        if kind not in ("box", "cylinder", "sphere", "capsule", "bottle", "banana"):
+            raise MeshError(f"object spec {spec!r}: unknown primitive {kind!r}")
+        return getattr(cls, kind)(**spec, **opts)
+
+    # ------------------------------------------------------------------ smooth distance (CasADi, lazy)
+    def signed_distance_function(self, tau: float | None = None, symbolic: str = "SX") -> ca.Function:
+        """Smooth signed distance p_object (3,1) -> d (1,1), m; built once per (τ, symbolic) and cached.
+
+        d_C(p) = τ·LSE((N_C p − h_C)/τ) per piece, d = −τ·LSE(−d_C/τ) over pieces (see
+        `regrasp_casadi.signed_distance` for the bounds). Value, gradient and Hessian are finite everywhere.
+
+        Args:
+            tau: temperature, m (default `signed_distance.DEFAULT_TAU`).
+            symbolic: "SX" (default; scalar graph, best for few planes and for embedding in SX NLPs) or
+                "MX" (matrix graph; about 2.5× faster value+gradient at ~250 planes, see
+                benchmarks/geometry.py). Both give the same values.
+        """
+        from regrasp_casadi import signed_distance as sd
+
+        tau = float(sd.DEFAULT_TAU if tau is None else tau)
+        if symbolic not in ("SX", "MX"):
+            raise ValueError(f"symbolic must be 'SX' or 'MX', not {symbolic!r}")
+        key = (tau, symbolic)
+        f = self._sd_functions.get(key)
+        if f is None:
+            f = sd.pieces_distance_function(f"sd_{self.name}", self.pieces, tau, symbolic)
+            self._sd_functions[key] = f
+        return f
+
+    def clearance_distance_function(self, max_planes: int = 16, tau: float | None = None) -> ca.Function:
+        """A coarse smooth signed distance for clearance constraints: p_object (3,1) -> d (1,1), m.
+
+        Each piece is re-simplified to at most `max_planes` planes (`convex.coarse_pieces`: exact support
+        values, so each coarse piece contains its piece and the value is a lower bound of the fine model's
+        hard distance up to the smoothing bias): cheaper to differentiate, and conservative where only
+        d ≥ β matters. Cached.
+        """
+        from regrasp_casadi import signed_distance as sd
+
+        tau = float(sd.DEFAULT_TAU if tau is None else tau)
+        key = ("coarse", int(max_planes), tau)
+        f = self._sd_functions.get(key)
+        if f is None:
+            coarse = coarse_pieces(self.pieces, max_planes)
+            f = sd.pieces_distance_function(f"sd_coarse_{self.name}", coarse, tau, "SX")
+            self._sd_functions[key] = f
+        return f
+
+    def local_planes(self, points, n_pieces: int = LOCAL_PIECES,
+                     k: int = LOCAL_PLANES) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The planes that decide the distance near `points` (s, 3), object frame, m: normals
+        (n_pieces, k, 3) and offsets (n_pieces, k) for `signed_distance.local_signed_distance`.
+
+        See `convex.select_local_planes` (the nearest pieces, their largest planes at the points).
+        """
+        return select_local_planes(self.pieces, points, n_pieces, k)
+
+    def signed_distance_map_function(self, k: int, tau: float | None = None) -> ca.Function:
+        """Vectorised smooth distance: points (3, k), object frame -> d (1, k), m (cached)."""
+        from regrasp_casadi.signed_distance import DEFAULT_TAU
+
+        key = (float(DEFAULT_TAU if tau is None else tau), int(k))
+        f = self._sd_maps.get(key)
+        if f is None:
+            f = self.signed_distance_function(tau).map(int(k))
+            self._sd_maps[key] = f
+        return f
+
+    def signed_distance(self, points, tau: float | None = None) -> NDArray[np.float64]:
+        """Smooth signed distance of points (n, 3), object frame, m. Returns (n,)."""
+        pts = np.atleast_2d(np.asarray(points, float))
+        out = self.signed_distance_map_function(len(pts), tau)(pts.T)
+        return np.asarray(out).ravel()
+
+    @property
+    def bias_bound(self) -> float:
+        """τ·log k_max at the default τ, m: how far the smooth value may exceed the hard plane bound."""
+        from regrasp_casadi.signed_distance import smoothing_bias
+
+        return smoothing_bias(self.pieces)
+
+    # ------------------------------------------------------------------ exact distance (numpy)
+    @property
+    def exact(self) -> ExactDistance:
+        """The exact-distance queries of this object's mesh (built on first use)."""
+        if self._exact is None:
+            self._exact = ExactDistance(self.mesh, self.pieces)
+        return self._exact
+
+    def closest_points(self, points: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Exact closest points on the mesh and signed distances (positive outside).
+
+        Args:
+            points: (n, 3) object frame, m.
+
+        Returns:
+            closest (n, 3) object frame, m; signed distance (n,), m.
+        """
+        return self.exact.closest_points(points)
+
+    def exact_signed_distance(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Exact signed distance of points (n, 3), object frame, m, to the mesh; positive outside. (n,)."""
+        return self.exact.signed_distance(points)
+
+    def near_signed_distance(self, points: ArrayLike, near=0.01) -> NDArray[np.float64]:
+        """Exact signed distance (n,) of points (n, 3) that may be within `near` (m; a scalar or one
+        value per point) of the surface, the pieces' cheap support-plane estimate (> `near`) elsewhere.
+        See `ExactDistance.near_signed_distance`."""
+        return self.exact.near_signed_distance(points, near)
+
+    def surface_normals(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Outward unit normal (n, 3), object frame, of the mesh face closest to each point (n, 3), m."""
+        return self.exact.surface_normals(points)
+
+    def sample_surface(self, n: int, seed: int = 0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Area-uniform surface samples: points (n, 3) m and outward face normals (n, 3), object frame."""
+        pts, fidx = trimesh.sample.sample_surface(self.mesh, int(n), seed=seed)
+        return np.asarray(pts), np.array(self.mesh.face_normals[fidx])
+
