@@ -75,10 +75,9 @@ def test_log_exp_round_trip_near_identity(angle):
     np.testing.assert_allclose(log_SO3(exp_so3(w)), w, atol=1e-14)
 
 
+# log_SO3 takes θ from arccos (error ~ε/(π − θ) near π) and divides by sin θ below its near-π branch
 _NEAR_PI_BUG = pytest.mark.xfail(strict=True, reason=(
-    "log_SO3 loses accuracy for angles π − 3e-5 ≳ θ > π − 1e-6: below its near-π threshold it uses "
-    "θ·v/(2 sin θ) with θ from arccos, whose error ~ε/(π−θ) is amplified by 1/sin θ (‖exp(log R) − R‖ "
-    "up to ~2e-3 at π − 1e-6)"))
+    "log_SO3 is inaccurate for π − 3e-5 ≳ θ > π − 1e-6: ‖exp(log R) − R‖ up to 2e-3"))
 
 
 @pytest.mark.parametrize("gap", [
