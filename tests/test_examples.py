@@ -64,7 +64,7 @@ def _check_04(out: str, tmp_path: Path) -> None:
 
 
 def _check_05(out: str, tmp_path: Path) -> None:
-    from regrasp_casadi.grasp import Plan
+    from regrasp_casadi.plan import Plan
 
     assert "status: converged" in out and "verify: ok" in out
     average, largest = _numbers(r"final contact error: avg {n} mm, max {n} mm", out)
