@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -83,14 +84,28 @@ def test_gait_far_goal_takes_a_step_of_eta(problem):
     assert after < before - 0.5 * nlp.options.eta  # and the tip got closer by a good part of it
 
 
-def test_resolving_does_not_rebuild(problem):
+def test_resolving_does_not_rebuild(problem, monkeypatch):
+    """The NLP is built once (one `casadi.nlpsol` call); new goals are parameters, not new NLPs."""
+    built: list[str] = []
+    real = ca.nlpsol
+
+    def counting(name, *args, **kwargs):
+        built.append(name)
+        return real(name, *args, **kwargs)
+
+    monkeypatch.setattr(ca, "nlpsol", counting)
     nlp = FingerGaitNLP(problem.hand, problem.obj, "ring")
-    builds = FingerGaitNLP.build_count()
+    assert len(built) == 1
     g0 = problem.grasp0
+    tips = []
     for k in range(3):
         goal = _on_face_goal(problem, "ring", 0.002 * (k + 1))
-        nlp.solve(g0.q, g0.T_palm_object, goal)
-    assert FingerGaitNLP.build_count() == builds
+        res = nlp.solve(g0.q, g0.T_palm_object, goal)
+        assert res.success and res.solves >= 1, res.status
+        assert np.linalg.norm(res.p_object_tip - goal) <= 5e-4  # each solve used its own goal
+        tips.append(res.p_object_tip)
+    assert len(built) == 1, built
+    assert min(np.linalg.norm(tips[i] - tips[j]) for i, j in ((0, 1), (1, 2), (0, 2))) >= 1.5e-3
 
 
 def test_gait_solution_is_deterministic(problem):

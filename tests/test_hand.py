@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 import yourdfpy
+from scipy.optimize import least_squares
 
 from regrasp_casadi.errors import ModelError
 from regrasp_casadi.hand import ALLEGRO_RIGHT_URDF, Hand
@@ -172,21 +173,54 @@ def test_allegro_structure_and_spec(hand):
     assert hand.check_limits(np.zeros(16)) == [("joint_12.0", 0.0, 0.263, 1.396)]
 
 
-def test_sphere_selection_orders_match(hand):
-    q = hand.q_mid()
-    for finger in (None, "thumb"):
-        for include_tip in (False, True):
-            centres = hand.sphere_centers(q, finger, include_tip)
-            labels = hand.sphere_labels(finger, include_tip)
-            radii = hand.sphere_radii(finger, include_tip)
-            assert len(centres) == len(labels) == len(radii)
-    T = hand.fk(q)
-    by_label = {s.label: s for s in hand.spheres}
-    for p, label in zip(
-        hand.sphere_centers(q, "index", True), hand.sphere_labels("index", True), strict=True
-    ):
-        s = by_label[label]
-        np.testing.assert_allclose(p, T[s.link][:3, :3] @ s.center_link + T[s.link][:3, 3], atol=1e-14)
+def _urdf_spheres(ref: yourdfpy.URDF) -> dict[str, tuple[str, np.ndarray, float]]:
+    """Collision spheres as written in the URDF: label -> (link, T_link_sphere (4, 4), radius m).
+
+    Labels are the collision names ("<link>#<k>"); the fingertip contact spheres are named
+    "tip_contact" in the URDF and labelled "<link>#tip"."""
+    spheres = {}
+    for link in ref.robot.links:
+        for c in link.collisions:
+            if c.geometry.sphere is None:
+                continue
+            label = f"{link.name}#tip" if c.name == "tip_contact" else c.name
+            origin = np.eye(4) if c.origin is None else np.asarray(c.origin, dtype=float)
+            spheres[label] = (link.name, origin, float(c.geometry.sphere.radius))
+    return spheres
+
+
+@pytest.fixture(scope="module")
+def urdf_ref():
+    return yourdfpy.URDF.load(str(ALLEGRO_RIGHT_URDF), load_meshes=False, build_collision_scene_graph=False)
+
+
+def test_sphere_centres_are_the_urdf_collision_spheres_placed_by_yourdfpy(hand, urdf_ref):
+    """Centres, labels and radii of every sphere selection agree, in the same order, with the URDF's
+    collision spheres placed by yourdfpy's forward kinematics."""
+    urdf = _urdf_spheres(urdf_ref)
+    assert set(hand.sphere_labels(None, True)) == set(urdf)
+    assert len(hand.sphere_labels(None, True)) == len(urdf) == 67
+    rng = np.random.default_rng(4)
+    for q in rng.uniform(hand.q_lower, hand.q_upper, size=(5, hand.n_joints)):
+        urdf_ref.update_cfg(q)
+        for finger in (None, *hand.fingers):
+            for include_tip in (False, True):
+                labels = hand.sphere_labels(finger, include_tip)
+                centres = hand.sphere_centers(q, finger, include_tip)
+                radii = hand.sphere_radii(finger, include_tip)
+                assert len(labels) == len(centres) == len(radii) > 0
+                for label, centre, radius in zip(labels, centres, radii, strict=True):
+                    link, T_link_sphere, r = urdf[label]
+                    T_palm_sphere = urdf_ref.get_transform(link, urdf_ref.base_link) @ T_link_sphere
+                    np.testing.assert_allclose(centre, T_palm_sphere[:3, 3], atol=1e-12, err_msg=label)
+                    assert radius == r
+                n_tips = sum(label.endswith("#tip") for label in labels)
+                assert n_tips == (0 if not include_tip else len(hand.fingers) if finger is None else 1)
+        # the tip positions are the tip contact spheres
+        for finger, tip in zip(hand.fingers, hand.tip_positions(q), strict=True):
+            link, T_link_sphere, _ = urdf[f"{hand.tip_links[finger]}#tip"]
+            np.testing.assert_allclose(
+                tip, (urdf_ref.get_transform(link, urdf_ref.base_link) @ T_link_sphere)[:3, 3], atol=1e-12)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -206,13 +240,49 @@ def test_tip_jacobian_matches_central_differences(hand, seed):
         assert np.all(J[:, other] == 0.0)
 
 
-def test_tip_workspace_samples_are_fk_of_uniform_finger_configurations(hand):
-    P = hand.tip_workspace_samples("ring", n=50, seed=3)
-    rng = np.random.default_rng(3)
-    idx = hand.finger_joints["ring"]
-    Q = np.tile(hand.q_mid(), (50, 1))
-    Q[:, idx] = rng.uniform(hand.q_lower[idx], hand.q_upper[idx], size=(50, len(idx)))
-    np.testing.assert_allclose(P, np.array([hand.tip_positions(q)[2] for q in Q]), atol=1e-14)
+def test_tip_workspace_samples_are_reachable_and_uniform_in_joint_space(hand, urdf_ref):
+    """The samples are tip centres of in-limit configurations of the finger (an IK with bounds reaches
+    each of them), distributed as uniform joint angles are: their mean and spread agree with an
+    independent Monte Carlo through yourdfpy's FK (other seed, other FK code)."""
+    finger = "ring"
+    r, idx = hand.fingers.index(finger), hand.finger_joints[finger]
+    P = hand.tip_workspace_samples(finger, n=4000, seed=3)
+    assert np.array_equal(P, hand.tip_workspace_samples(finger, n=4000, seed=3))
+    assert not np.allclose(P[:10], hand.tip_workspace_samples(finger, n=10, seed=4))
+    lo, hi = hand.q_lower[idx], hand.q_upper[idx]
+    # independent reference: uniform joint angles, yourdfpy FK, tip sphere from the URDF
+    link, T_link_tip, _ = _urdf_spheres(urdf_ref)[f"{hand.tip_links[finger]}#tip"]
+    ref = []
+    for q_r in np.random.default_rng(12345).uniform(lo, hi, size=(1000, len(idx))):
+        q = hand.q_mid()
+        q[idx] = q_r
+        urdf_ref.update_cfg(q)
+        ref.append((urdf_ref.get_transform(link, urdf_ref.base_link) @ T_link_tip)[:3, 3])
+    ref = np.array(ref)
+    z = np.abs(P.mean(0) - ref.mean(0)) / np.sqrt(P.var(0) / len(P) + ref.var(0) / len(ref))
+    assert np.all(z <= 5.0), z
+    np.testing.assert_allclose(P.std(0), ref.std(0), rtol=0.1)
+    # every sample is reachable within the joint limits (bounded least-squares IK from a few starts)
+    starts = [hand.q_mid()[idx], *np.random.default_rng(0).uniform(lo, hi, size=(5, len(idx)))]
+    for p in P[:10]:
+        def residual(q_r, p=p):
+            q = hand.q_mid()
+            q[idx] = q_r
+            return hand.tip_positions(q)[r] - p
+
+        def jacobian(q_r):
+            q = hand.q_mid()
+            q[idx] = q_r
+            return hand.tip_jacobian(q, finger)[:, idx]
+
+        best = np.inf
+        for x0 in starts:  # the first start (mid-range) nearly always suffices
+            fit = least_squares(residual, x0, jac=jacobian, bounds=(lo, hi), xtol=1e-12, ftol=1e-12,
+                                gtol=1e-12)
+            best = min(best, float(np.linalg.norm(fit.fun)))
+            if best <= 1e-9:
+                break
+        assert best <= 1e-9
 
 
 def test_symbolic_functions_are_cached_and_named(hand):

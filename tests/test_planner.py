@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+from dataclasses import asdict, replace
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 
-from regrasp_casadi.finger_gait import FingerGaitNLP
 from regrasp_casadi.grasp import Grasp
-from regrasp_casadi.in_grasp import InGraspNLP
 from regrasp_casadi.plan import Plan
 from regrasp_casadi.planner import PlannerOptions, gait_pattern, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.transforms import inv_T, transform_points
 from regrasp_casadi.verify import verify
 
 PROBLEMS = sorted((Path(__file__).resolve().parents[1] / "problems").glob("*.yaml"))
@@ -37,14 +41,31 @@ def test_shipped_problem_converges_and_verifies(path, method):
     assert kinds[0] == "initial" and "gait" in kinds
 
 
-def test_no_rebuild_inside_a_plan(box):
-    plan_regrasp(box.grasp0, box.grasp_goal, method="svd")  # warms the cache
-    gait_builds, in_grasp_builds = FingerGaitNLP.build_count(), InGraspNLP.build_count()
-    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="svd")
-    assert len(plan.steps) > 5
-    assert FingerGaitNLP.build_count() == gait_builds
-    assert InGraspNLP.build_count() == in_grasp_builds
-    assert plan.timing["build"] == 0.0
+def _count_nlpsol(monkeypatch) -> list[str]:
+    """Record the name of every `casadi.nlpsol` call (every NLP built) from now on."""
+    calls: list[str] = []
+    real = ca.nlpsol
+
+    def counting(name, *args, **kwargs):
+        calls.append(name)
+        return real(name, *args, **kwargs)
+
+    monkeypatch.setattr(ca, "nlpsol", counting)
+    return calls
+
+
+def test_no_rebuild_inside_a_plan(monkeypatch):
+    fresh = RegraspProblem.load(BOX_PROBLEM)  # a new hand and object: nothing of theirs is cached yet
+    built = _count_nlpsol(monkeypatch)
+    first = plan_regrasp(fresh.grasp0, fresh.grasp_goal, method="svd")
+    # one OPT1 per finger of the gait and one OPT2 (the svd method reposes with the pose NLP)
+    assert len(built) == len(set(first.options["gait_used"])) + 1, built
+    assert first.timing["build"] > 0.0
+    n_first = len(built)
+    second = plan_regrasp(fresh.grasp0, fresh.grasp_goal, method="svd")
+    assert len(second.steps) > 5
+    assert len(built) == n_first, f"the second plan built {built[n_first:]}"
+    assert second.timing["build"] == 0.0
 
 
 def test_same_input_same_plan(box):
@@ -55,6 +76,34 @@ def test_same_input_same_plan(box):
         assert np.array_equal(sa.q, sb.q) and np.array_equal(sa.T_palm_object, sb.T_palm_object)
 
 
+_PLAN_IN_A_FRESH_PROCESS = """
+import sys
+from regrasp_casadi.planner import plan_regrasp
+from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.transforms import inv_T, transform_points
+problem = RegraspProblem.load(sys.argv[1])
+plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", max_iters=3).save(sys.argv[2])
+"""
+
+
+def test_same_plan_in_a_fresh_process(box, tmp_path):
+    """The plan depends on its input only: not on the NLP cache and warm starts of this process (which
+    has planned before), nor on hash randomisation."""
+    out = tmp_path / "plan.json"
+    env = {**os.environ, "PYTHONHASHSEED": "12345"}
+    subprocess.run([sys.executable, "-c", _PLAN_IN_A_FRESH_PROCESS, str(BOX_PROBLEM), str(out)],
+                   check=True, env=env, timeout=300)
+    plan_regrasp(box.grasp0, box.grasp_goal, method="sd", max_iters=1)  # other warm starts in the cache
+    here = plan_regrasp(box.grasp0, box.grasp_goal, method="svd", max_iters=3)
+    there = Plan.load(out)
+    assert (there.status, there.iterations) == (here.status, here.iterations)
+    assert len(there.steps) == len(here.steps) > 3
+    for a, b in zip(here.steps, there.steps, strict=True):
+        assert (a.kind, a.finger) == (b.kind, b.finger)
+        assert np.array_equal(a.q, b.q) and np.array_equal(a.T_palm_object, b.T_palm_object)
+    assert np.array_equal(here.iteration_errors, there.iteration_errors)
+
+
 def test_iteration_limit_is_a_status_with_a_partial_plan(box):
     plan = plan_regrasp(box.grasp0, box.grasp_goal, method="svd", max_iters=1)
     assert plan.status == "iteration_limit"
@@ -63,12 +112,33 @@ def test_iteration_limit_is_a_status_with_a_partial_plan(box):
     assert verify(plan, box.hand, box.obj).ok  # what was planned is still valid
 
 
-def test_errors_decrease_and_are_recorded(box):
+def _box_contact_errors(problem, step) -> np.ndarray:
+    """Closed-form contact errors (m,) of a step on the box problem: the closest point of a tip centre
+    outside an origin-centred box is the centre clipped to the box."""
+    half = np.asarray(problem.obj.spec["extents"]) / 2
+    tips_object = transform_points(inv_T(step.T_palm_object), problem.hand.tip_positions(step.q))
+    assert np.all(np.max(np.abs(tips_object) - half, axis=1) > 0)  # every tip centre is outside
+    contacts = np.clip(tips_object, -half, half)
+    return np.linalg.norm(contacts - problem.grasp_goal.contacts_object, axis=1)
+
+
+def test_recorded_errors_are_the_contact_distances_and_fall_below_zeta(box):
     plan = plan_regrasp(box.grasp0, box.grasp_goal, method="svd")
-    errors = plan.iteration_errors
-    assert errors[0] == pytest.approx(np.mean(plan.steps[0].contact_error))
-    assert errors[-1] < errors[0]
-    assert plan.iterations == len(errors) - 1
+    assert plan.status == "converged", plan.status_detail
+    initial = np.linalg.norm(box.grasp0.contacts_object - box.grasp_goal.contacts_object, axis=1)
+    assert plan.iteration_errors[0] == pytest.approx(np.mean(initial), abs=1e-12)
+    for k, step in enumerate(plan.steps):
+        np.testing.assert_allclose(step.contact_error, _box_contact_errors(box, step), atol=1e-12,
+                                   err_msg=f"step {k}")
+    # every iteration's error is the mean error of one of the plan's steps (the last of the iteration)
+    step_means = np.array([np.mean(s.contact_error) for s in plan.steps])
+    for e in plan.iteration_errors:
+        assert np.min(np.abs(step_means - e)) <= 1e-15
+    assert plan.iterations == len(plan.iteration_errors) - 1
+    # the problem asks to move the contacts by ≥ 3 cm on average; the plan ends below ζ
+    assert plan.iteration_errors[0] >= 0.03
+    assert plan.iteration_errors[-1] <= plan.options["zeta"]
+    assert np.max(plan.steps[-1].contact_error) <= plan.options["zeta"]
 
 
 def test_invalid_input_is_a_status(box):
@@ -100,16 +170,50 @@ def test_gait_pattern_rule(box):
     assert gait_pattern(hand, contacts, goal) == ("thumb", "ring", "middle", "index")
 
 
-def test_options_are_recorded(box):
-    plan = plan_regrasp(box.grasp0, box.grasp_goal, options=PlannerOptions(eta=0.008), max_iters=1)
-    assert plan.options["eta"] == 0.008 and plan.options["max_iters"] == 1
+def _gait_step_lengths(hand, plan) -> list[float]:
+    """Palm-frame displacement (m) of the moving fingertip in each gait step."""
+    lengths = []
+    for before, step in zip(plan.steps[:-1], plan.steps[1:], strict=True):
+        if step.kind == "gait":
+            r = hand.fingers.index(step.finger)
+            moved = hand.tip_positions(step.q)[r] - hand.tip_positions(before.q)[r]
+            lengths.append(float(np.linalg.norm(moved)))
+    return lengths
 
 
-def test_package_level_verify_is_the_verifier(box):
+def test_options_are_recorded_by_value_and_take_effect(box, tmp_path):
+    given = PlannerOptions(eta=0.008, zeta=0.005, gait=("thumb", "index", "middle", "ring"))
+    plan = plan_regrasp(box.grasp0, box.grasp_goal, options=given, max_iters=1)
+    expected = {**asdict(given), "max_iters": 1, "gait": ["thumb", "index", "middle", "ring"]}
+    plan.save(tmp_path / "plan.json")
+    for recorded in (plan.options, Plan.load(tmp_path / "plan.json").options):
+        assert {k: recorded[k] for k in expected} == expected
+        assert recorded["gait_used"] == ["thumb", "index", "middle", "ring"]
+    # the recorded η is the one used: every gait step is bounded by 8 mm, and the far goals make the
+    # bound active (with the default η = 10 mm the same gaits step 10 mm)
+    lengths = _gait_step_lengths(box.hand, plan)
+    assert len(lengths) == 4
+    assert max(lengths) <= 0.008 + 1e-6
+    assert min(lengths) >= 0.008 - 1e-5
+    assert [s.finger for s in plan.steps if s.kind == "gait"] == ["thumb", "index", "middle", "ring"]
+
+
+def test_package_level_verify_accepts_valid_and_rejects_planted_violations(box):
     import regrasp_casadi
 
     plan = plan_regrasp(box.grasp0, box.grasp_goal, method="svd", max_iters=1)
-    assert regrasp_casadi.verify(plan, box.hand, box.obj) == verify(plan, box.hand, box.obj)
+    report = regrasp_casadi.verify(plan, box.hand, box.obj)
+    assert report.ok, report.summary()
+    # plant a joint-limit violation: step 1's first joint 0.1 rad beyond its upper limit
+    hand = box.hand
+    q = np.array(plan.steps[1].q)
+    q[0] = hand.q_upper[0] + 0.1
+    bad = replace(plan, steps=(plan.steps[0], replace(plan.steps[1], q=q), *plan.steps[2:]))
+    report = regrasp_casadi.verify(bad, box.hand, box.obj)
+    assert not report.ok
+    limit = [v for v in report.violations if v.check == "joint_limit"]
+    assert [(v.step, v.who) for v in limit] == [(1, hand.joint_names[0])]
+    assert limit[0].amount == pytest.approx(0.1, abs=1e-12)
 
 
 def test_stability_gait_order_plans_and_verifies(box):

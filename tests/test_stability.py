@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
+from grasp_checks import force_closure_lp
 
-from regrasp_casadi.stability import contact_normals, force_closure_quality, holding_quality
+from regrasp_casadi.stability import FRICTION_EDGES, contact_normals, force_closure_quality, holding_quality
 
 # two pinches on opposite faces (x = ±3 cm) of a box, spread along y and z
 PINCHES = np.array([[0.03, 0.02, 0.02], [0.03, -0.02, -0.02], [-0.03, 0.02, -0.02], [-0.03, -0.02, 0.02]])
@@ -28,12 +30,64 @@ def test_opposed_pairs_with_friction_are_in_force_closure():
     assert force_closure_quality(contacts, normals, mu=0.0, center=np.zeros(3), length=0.05) <= 0.0
 
 
-def test_holding_quality_is_the_quality_of_the_other_contacts():
-    contacts = PINCHES
-    tips = contacts + 0.014 * np.sign(contacts[:, :1]) * np.array([[1.0, 0.0, 0.0]])
-    normals = contact_normals(contacts, tips)
-    np.testing.assert_allclose(normals, np.sign(contacts[:, :1]) * np.array([[1.0, 0.0, 0.0]]), atol=1e-12)
-    for moving in range(4):
-        keep = [i for i in range(4) if i != moving]
-        expected = force_closure_quality(contacts[keep], normals[keep], 0.5, np.zeros(3), 0.05)
-        assert holding_quality(contacts, tips, moving, np.zeros(3), 0.05) == expected
+def _two_opposed_pairs(offset_y: float) -> np.ndarray:
+    """Two pinches across the x = ±3 cm faces at z = ±2 cm, the −x contacts shifted by `offset_y` along
+    y, and a fifth contact on the +y face (y = 3.5 cm): (5, 3), object frame, m."""
+    return np.array([[0.03, 0.0, 0.02], [-0.03, offset_y, 0.02], [0.03, 0.0, -0.02],
+                     [-0.03, offset_y, -0.02], [0.0, 0.035, 0.0]])
+
+
+def _tips(contacts: np.ndarray, radius: float = 0.014) -> np.ndarray:
+    """Tip-sphere centres `radius` outside each contact along the face normal (±x, or +y)."""
+    normals = np.where(np.abs(contacts[:, :1]) > 0.029, np.sign(contacts[:, :1]) * [[1.0, 0.0, 0.0]],
+                       [[0.0, 1.0, 0.0]])
+    return contacts + radius * normals
+
+
+@pytest.mark.parametrize(("offset_y", "closure"), [(0.0, True), (0.009, True), (0.045, False),
+                                                   (0.06, False)])
+def test_holding_quality_follows_the_friction_cone_of_the_pinches(offset_y, closure):
+    """Lifting the fifth finger leaves two opposed pinches. Their squeeze needs a tangential force
+    F = s·B / 0.06 for a total normal force B (torque balance about z), within friction μB: force closure
+    iff s / 0.06 < μ (μ = 0.5: s < 3 cm; checked well inside and well outside the cone)."""
+    contacts = _two_opposed_pairs(offset_y)
+    tips = _tips(contacts)
+    eps = holding_quality(contacts, tips, 4, np.zeros(3), 0.05, mu=0.5)
+    assert (eps > 1e-6) if closure else (eps <= 1e-9), eps
+    assert force_closure_lp(contacts[:4], contact_normals(contacts[:4], tips[:4]), 0.5, np.zeros(3),
+                            0.05) == closure
+    # the lifted finger matters: with all five down the grasp is at least as good
+    assert force_closure_quality(contacts, contact_normals(contacts, tips), 0.5, np.zeros(3), 0.05) >= eps
+
+
+def test_holding_quality_without_the_opposing_finger_is_not_closure():
+    """Lifting the only finger on the −x side leaves contacts that can all only push along −x."""
+    contacts = np.array([[0.03, 0.02, 0.02], [0.03, -0.02, 0.0], [0.03, 0.0, -0.02], [-0.03, 0.0, 0.0]])
+    tips = contacts + 0.014 * np.sign(contacts[:, :1]) * [[1.0, 0.0, 0.0]]
+    assert holding_quality(contacts, tips, 3, np.zeros(3), 0.05) <= 0.0
+    assert holding_quality(contacts, tips, 0, np.zeros(3), 0.05) > 0.0
+
+
+def test_holding_quality_agrees_with_an_lp_on_random_grasps():
+    """Random 4-finger grasps on a sphere (contacts and outward tips), every finger lifted in turn, judged
+    by the LP test of the three remaining contacts (independent code, its own cone edges). The two
+    linearise the cone of radius μ by different octagons, each between the cones of radius μ·cos(π/8)
+    and μ, so: LP closure at μ·cos(π/8) ⇒ ε(μ) > 0 ⇒ LP closure at μ / cos(π/8)."""
+    mu, shrink = 0.5, np.cos(np.pi / FRICTION_EDGES)
+    rng = np.random.default_rng(11)
+    closed = opened = 0
+    for _ in range(15):
+        n = rng.normal(size=(4, 3))
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        contacts, tips = 0.03 * n, 0.044 * n
+        for moving in range(4):
+            eps = holding_quality(contacts, tips, moving, np.zeros(3), 0.03, mu=mu)
+            keep = [i for i in range(4) if i != moving]
+            if force_closure_lp(contacts[keep], n[keep], mu * shrink, np.zeros(3), 0.03):
+                assert eps > 0.0, (moving, eps)
+                closed += 1
+            if eps > 1e-9:
+                assert force_closure_lp(contacts[keep], n[keep], mu / shrink, np.zeros(3), 0.03), moving
+            else:
+                opened += 1
+    assert closed >= 20 and opened >= 10  # both outcomes are exercised (36 and 24 with this seed)
