@@ -11,7 +11,7 @@ import trimesh
 import yourdfpy
 
 from regrasp_casadi.errors import ModelError
-from regrasp_casadi.hand import ALLEGRO_RIGHT_URDF, Hand
+from regrasp_casadi.hand import Hand
 
 N_CONFIGS = 100
 
@@ -41,7 +41,7 @@ def _compare_with_yourdfpy(hand: Hand, urdf_path: Path) -> tuple[float, float]:
 
 
 def test_fk_matches_yourdfpy_shipped_model(hand):
-    max_p, max_r = _compare_with_yourdfpy(hand, ALLEGRO_RIGHT_URDF)
+    max_p, max_r = _compare_with_yourdfpy(hand, hand.urdf_path)
     assert max_p <= 1e-9 and max_r <= 1e-9
 
 
