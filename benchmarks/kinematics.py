@@ -45,7 +45,7 @@ import yourdfpy
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import machine_info  # noqa: E402
 
-from regrasp_casadi.hand import ALLEGRO_RIGHT_URDF, Hand  # noqa: E402
+from regrasp_casadi.hand import Hand  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -89,7 +89,7 @@ def main() -> None:
     hand = Hand.allegro_right()
     rng = np.random.default_rng(0)
     q = rng.uniform(hand.q_lower, hand.q_upper)
-    urdf = yourdfpy.URDF.load(str(ALLEGRO_RIGHT_URDF), load_meshes=False, build_collision_scene_graph=False)
+    urdf = yourdfpy.URDF.load(str(hand.urdf_path), load_meshes=False, build_collision_scene_graph=False)
     links = [link.name for link in urdf.robot.links]
 
     def yourdfpy_fk():

@@ -3,7 +3,7 @@
     regrasp plan PROBLEM.yaml --method svd --out plan.json [--html replay.html] [--view] [--max-iters N]
     regrasp verify plan.json [--all]
     regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]]
-    regrasp grasps MESH_OR_PROBLEM [--n N] [--seed S] [--out problems/x.yaml]
+    regrasp grasps MESH_OR_PROBLEM [--hand MODEL] [--n N] [--seed S] [--out problems/x.yaml]
     regrasp bench [ARGS ...]          (runs benchmarks/paper_objects.py)
     regrasp demo [--out-dir DIR] [--method svd]
 
@@ -30,6 +30,8 @@ import traceback
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from regrasp_casadi.resources import builtin_problem
+
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.plan import Plan
 
@@ -41,9 +43,9 @@ EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
 EXIT_INTERRUPTED = 130
 
-_REPO = Path(__file__).resolve().parents[1]
-DEMO_PROBLEM = _REPO / "problems" / "box_rotate.yaml"
-BENCH_SCRIPT = _REPO / "benchmarks" / "paper_objects.py"
+DEMO_PROBLEM = builtin_problem("box_rotate")   # package data (regrasp_casadi.problems)
+# the benchmark scripts are not package data: `regrasp bench` needs a source checkout
+BENCH_SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "paper_objects.py"
 
 _EPILOG = """exit codes:
   0    success (plan/demo: converged and verified; verify: plan verified)
@@ -144,6 +146,13 @@ def _load_plan(path: str) -> Plan:
         raise PlanFormatError(f"{path}: cannot read plan file: {e}") from None
 
 
+def _hand(name: str):
+    """`--hand`: a URDF file (``*.urdf``), or a hand model (a shipped model's name or a model folder)."""
+    from regrasp_casadi.hand import Hand
+
+    return Hand.from_urdf(name) if name.lower().endswith(".urdf") else Hand.from_model(name)
+
+
 def _view_live(plan: Plan, hand=None, obj=None) -> int:
     from regrasp_casadi.viewer import show
 
@@ -220,13 +229,12 @@ def cmd_grasps(args: argparse.Namespace) -> int:
         problem = RegraspProblem.load(src)
         hand, obj = problem.hand, problem.obj
     else:
-        from regrasp_casadi.hand import Hand
         from regrasp_casadi.objects import ObjectModel
 
         if not src.is_file():
             raise _UserError(f"{src}: no such mesh or problem file")
         obj = ObjectModel.from_mesh(src, scale=args.scale)
-        hand = Hand.allegro_right()
+        hand = _hand(args.hand)
     if args.out:
         from regrasp_casadi.problem import RegraspProblem
 
@@ -272,7 +280,7 @@ def _demo_problem():
     from regrasp_casadi.objects import ObjectModel
 
     logging.getLogger(__name__).info("%s missing: generating a box regrasp problem", DEMO_PROBLEM)
-    hand, obj = Hand.allegro_right(), ObjectModel.box((0.06, 0.06, 0.12))
+    hand, obj = Hand.default(), ObjectModel.box((0.06, 0.06, 0.12))
     (g0, gg), = generate_regrasp_pairs(hand, obj, 1, seed=0)
     return RegraspProblem("box_generated", "generated in memory by `regrasp demo`", None, hand, obj,
                           g0, gg, {})
@@ -295,6 +303,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The `regrasp` argument parser (one subparser per command)."""
     from regrasp_casadi import __version__
+    from regrasp_casadi.hand_model import DEFAULT_MODEL
 
     # --verbose is accepted before and after the command; the subcommands' copy must not reset it
     common = argparse.ArgumentParser(add_help=False)
@@ -341,6 +350,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = add("grasps", "generate precision grasps on a mesh (or a problem's object)")
     sp.add_argument("source", metavar="MESH_OR_PROBLEM", help="mesh file (.obj, .stl, ...) or problem .yaml")
+    sp.add_argument("--hand", default=DEFAULT_MODEL, metavar="MODEL",
+                    help="hand for a mesh: a shipped model name, a model folder (with hand.yaml) or a URDF "
+                         f"file (default: {DEFAULT_MODEL}); a problem file names its own hand")
     sp.add_argument("--n", type=int, default=1, metavar="N", help="number of grasps to generate")
     sp.add_argument("--seed", type=int, default=0, metavar="S", help="random seed")
     sp.add_argument("--scale", type=float, default=1.0, help="mesh scale to metres (default 1.0)")

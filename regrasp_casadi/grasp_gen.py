@@ -12,8 +12,8 @@ A generated grasp G = (X, o, Θ) satisfies, checked with the *exact* mesh distan
 How (one attempt): sample an object pose in front of the palm (an orientation aligned with the object's
 oriented bounding box plus a random tilt, a random position where the fingertip workspaces reach it),
 pick one contact target per finger among sampled surface points that the finger can reach (tip
-workspace samples over the joint limits), with the three fingers on one side and the thumb opposite
-them, keeping only target sets that are themselves in force closure, then solve with IPOPT
+workspace samples over the joint limits), with the fingers on one side and the thumb (`hand.thumb`)
+opposite them, keeping only target sets that are themselves in force closure, then solve with IPOPT
 
     min_{q, δt, a}  Σ_r ||R(a)ᵀ(FK_r(q) − t) − (x_r + r_tip n_r)||² / s² + w_q ||q − q_ref||²
                     + w_t ||δt||² / s² + w_a ||a||²
@@ -280,8 +280,8 @@ def _object_data(hand: Hand, obj: ObjectModel) -> _ObjectData:
     return data
 
 
-def _sample_pose(obj, data, rng, guess) -> NDArray[np.float64]:
-    """Object pose in the palm frame: OBB-aligned orientation with a tilt, centre in the grasp region."""
+def _sample_pose(hand, obj, data, rng, guess) -> NDArray[np.float64]:
+    """Object pose in the palm frame: OBB-aligned orientation with a tilt, centre in `hand.grasp_region`."""
     if guess is not None:
         T = np.asarray(guess, float)
         R = T[:3, :3] @ exp_so3(rng.normal(scale=0.12, size=3))
@@ -292,8 +292,9 @@ def _sample_pose(obj, data, rng, guess) -> NDArray[np.float64]:
         R = exp_so3(rng.normal(scale=0.25, size=3)) @ R
     else:
         R = _random_rotation(rng)
-    # grasp region in front of the palm: between the thumb and the fingers
-    c = np.array([rng.uniform(0.06, 0.12), rng.uniform(-0.02, 0.05), rng.uniform(0.0, 0.07)])
+    # the hand's grasp region (hand.yaml; Allegro: in front of the palm, between the thumb and the fingers)
+    lower, upper = hand.grasp_region
+    c = np.array([rng.uniform(lower[k], upper[k]) for k in range(3)])
     t = c - R @ data.com
     T = make_T(R, t)
     # push away from the palm until its fixed spheres clear the object by 5 mm
@@ -322,7 +323,7 @@ def _pick_targets_once(hand, data, ws, T, rng, avoid, min_mean_distance):
     whose inward line of action passes near the fingers' centroid and whose normal opposes theirs.
     """
     fingers = list(hand.fingers)
-    thumb = fingers[-1]
+    thumb = hand.thumb if hand.thumb is not None else fingers[-1]  # no thumb in the metadata: the last
     r = hand.tip_radius
     P = transform_points(T, data.points)
     N = data.normals @ T[:3, :3].T
@@ -338,7 +339,7 @@ def _pick_targets_once(hand, data, ws, T, rng, avoid, min_mean_distance):
         if len(reach[f]) == 0:
             return None
     chosen: dict[str, int] = {}
-    for f in fingers[:-1]:
+    for f in (f for f in fingers if f != thumb):
         cand = reach[f]
         for i in chosen.values():
             cand = cand[np.linalg.norm(goals[cand] - goals[i], axis=1) >= _TIP_SPACING]
@@ -379,7 +380,7 @@ def _initial_q(hand, ws, goals_palm, rng) -> NDArray[np.float64]:
 
 # --------------------------------------------------------------------------------------- attempt
 def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance) -> Grasp | None:
-    T0 = _sample_pose(obj, data, rng, guess)
+    T0 = _sample_pose(hand, obj, data, rng, guess)
     idx = _pick_targets(hand, data, ws, T0, rng, avoid, min_mean_distance, mu)
     if idx is None:
         _STATS["no_targets"] += 1

@@ -1,13 +1,15 @@
 """Hand: a tree-structured URDF turned into cached CasADi SX kinematics and collision spheres.
 
-The URDF is parsed with lxml (no ROS, no urdf2casadi). Every link gets a symbolic homogeneous transform
-``T_palm_<link>(q)`` built once; tip positions, Jacobians and sphere centres are ``ca.Function`` objects
-(SX inside, ``cse=True``) cached on the instance, callable on numbers, SX or MX.
+The URDF and the hand's metadata file are read by `regrasp_casadi.hand_model` (yourdfpy parses the URDF;
+no ROS, no urdf2casadi). Here every link gets a symbolic homogeneous transform ``T_palm_<link>(q)`` built
+once; tip positions, Jacobians and sphere centres are ``ca.Function`` objects (SX inside, ``cse=True``)
+cached on the instance, callable on numbers, SX or MX.
 
-    >>> hand = Hand.allegro_right()
+    >>> hand = Hand.from_model("allegro_right")      # = Hand.allegro_right()
     >>> q = 0.5 * (hand.q_lower + hand.q_upper)
     >>> p_palm_tips = hand.tip_positions(q)          # (4, 3), contact-sphere centres, palm frame, m
     >>> J = hand.tip_jacobian(q, "index")              # (3, 16)
+    >>> hand.thumb, hand.gait_forward                  # from models/allegro_right/hand.yaml
 """
 
 from __future__ import annotations
@@ -24,21 +26,21 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from regrasp_casadi.errors import ModelError
-from regrasp_casadi.transforms import rpy_to_R
+from regrasp_casadi.hand_model import (
+    DEFAULT_MODEL,
+    HandMetadata,
+    JointModel,
+    UrdfModel,
+    fallback_metadata,
+    load_metadata,
+    model_urdf,
+    models_dir,
+    read_urdf,
+)
 
 __all__ = ["CollisionSphere", "Hand"]
 
 logger = logging.getLogger(__name__)
-
-MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
-ALLEGRO_RIGHT_URDF = MODELS_DIR / "allegro_right" / "allegro_right.urdf"
-ALLEGRO_FINGERS = {
-    "index": "link_3.0_tip",
-    "middle": "link_7.0_tip",
-    "ring": "link_11.0_tip",
-    "thumb": "link_15.0_tip",
-}
-_SUPPORTED = ("revolute", "continuous", "prismatic", "fixed")
 
 
 def _function_name(prefix: str, name: str) -> str:
@@ -64,119 +66,6 @@ class CollisionSphere:
     """Readable label ``"<link>#<k>"`` (k: index among the link's spheres) or ``"<link>#tip"``."""
 
 
-@dataclass(frozen=True)
-class _Joint:
-    name: str
-    type: str
-    parent: str
-    child: str
-    T_parent_joint: NDArray[np.float64]  # (4, 4) origin
-    axis: NDArray[np.float64]  # (3,) unit
-    lower: float
-    upper: float
-    mimic: tuple[str, float, float] | None  # (joint, multiplier, offset)
-
-
-def _floats(text: str | None, n: int, default: tuple[float, ...], where: str) -> NDArray[np.float64]:
-    if text is None:
-        return np.array(default, dtype=float)
-    try:
-        vals = [float(v) for v in text.split()]
-    except ValueError as exc:
-        raise ModelError(f"{where}: cannot parse numbers from {text!r}") from exc
-    if len(vals) != n:
-        raise ModelError(f"{where}: expected {n} numbers, got {text!r}")
-    return np.array(vals)
-
-
-def _origin(elem, where: str) -> NDArray[np.float64]:
-    T = np.eye(4)
-    o = elem.find("origin")
-    if o is not None:
-        T[:3, 3] = _floats(o.get("xyz"), 3, (0.0, 0.0, 0.0), where + " <origin xyz>")
-        T[:3, :3] = rpy_to_R(*_floats(o.get("rpy"), 3, (0.0, 0.0, 0.0), where + " <origin rpy>"))
-    return T
-
-
-def _parse_urdf(path: Path):
-    """Parse a URDF file into (robot name, link names, joints, link spheres); raises ModelError."""
-    from lxml import etree
-
-    if not path.is_file():
-        raise ModelError(f"URDF file not found: {path}")
-    try:
-        root = etree.parse(str(path)).getroot()
-    except etree.XMLSyntaxError as exc:
-        raise ModelError(f"{path}: malformed XML: {exc}") from exc
-    if root.tag != "robot":
-        raise ModelError(f"{path}: root element is <{root.tag}>, expected <robot>")
-    links = [el.get("name") for el in root.findall("link")]
-    if any(n is None for n in links):
-        raise ModelError(f"{path}: a <link> has no name attribute")
-    if len(set(links)) != len(links):
-        dup = sorted({n for n in links if links.count(n) > 1})
-        raise ModelError(f"{path}: duplicate link names {dup}")
-    spheres: dict[str, list[tuple[str | None, NDArray[np.float64], float]]] = {n: [] for n in links}
-    for el in root.findall("link"):
-        for col in el.findall("collision"):
-            s = col.find("geometry/sphere")
-            if s is None:
-                continue
-            where = f"{path}: link {el.get('name')!r} <collision>"
-            r = _floats(s.get("radius"), 1, (math.nan,), where + " <sphere radius>")[0]
-            if not r >= 0.0:
-                raise ModelError(f"{where}: sphere radius missing or negative")
-            spheres[el.get("name")].append((col.get("name"), _origin(col, where)[:3, 3], float(r)))
-    joints = []
-    for el in root.findall("joint"):
-        name, jtype = el.get("name"), el.get("type")
-        where = f"{path}: joint {name!r}"
-        if jtype not in _SUPPORTED:
-            raise ModelError(
-                f"{where}: joint type {jtype!r} is not supported (supported: {', '.join(_SUPPORTED)})"
-            )
-        parent, child = el.find("parent"), el.find("child")
-        if parent is None or child is None or parent.get("link") is None or child.get("link") is None:
-            raise ModelError(f"{where}: missing <parent link> or <child link>")
-        for tag, ln in (("parent", parent.get("link")), ("child", child.get("link"))):
-            if ln not in spheres:
-                raise ModelError(f"{where}: {tag} link {ln!r} is not a <link> of the file")
-        ax = el.find("axis")
-        axis = _floats(None if ax is None else ax.get("xyz"), 3, (1.0, 0.0, 0.0), where + " <axis xyz>")
-        if jtype != "fixed":
-            nrm = np.linalg.norm(axis)
-            if nrm < 1e-12:
-                raise ModelError(f"{where}: zero <axis>")
-            axis = axis / nrm
-        lower, upper = -math.inf, math.inf
-        if jtype in ("revolute", "prismatic"):
-            lim = el.find("limit")
-            if lim is None:
-                raise ModelError(f"{where}: {jtype} joint without <limit>")
-            lower = float(_floats(lim.get("lower"), 1, (0.0,), where + " <limit lower>")[0])
-            upper = float(_floats(lim.get("upper"), 1, (0.0,), where + " <limit upper>")[0])
-            if lower > upper:
-                raise ModelError(f"{where}: <limit> lower {lower} > upper {upper}")
-        mimic = None
-        mel = el.find("mimic")
-        if mel is not None and jtype != "fixed":
-            mimic = (mel.get("joint"), float(mel.get("multiplier", 1.0)), float(mel.get("offset", 0.0)))
-        joints.append(
-            _Joint(
-                name,
-                jtype,
-                parent.get("link"),
-                child.get("link"),
-                _origin(el, where),
-                axis,
-                lower,
-                upper,
-                mimic,
-            )
-        )
-    return root.get("name") or path.stem, links, joints, spheres
-
-
 class Hand:
     """Kinematic and collision model of a multi-fingered hand from a tree-structured URDF.
 
@@ -185,131 +74,122 @@ class Hand:
     """
 
     def __init__(self, urdf_path: str | Path, fingers: dict[str, str] | None = None) -> None:
-        """Read ``urdf_path``; ``fingers`` maps finger name -> tip link (default: the leaf links).
+        """Read ``urdf_path`` and the ``hand.yaml`` beside it (if that file describes this URDF).
+
+        ``fingers`` maps finger name -> tip link; default: the metadata file's fingers, else the leaf
+        links. Fingers that differ from the metadata file's drop its finger-level entries (no thumb, gait
+        order = finger order), see `hand_model.fallback_metadata`.
 
         Raises:
-            ModelError: missing/malformed file, unsupported joint, not a tree, unknown tip link.
+            ModelError: missing/malformed file, unsupported joint, not a tree, unknown tip link, invalid
+                metadata file.
         """
-        path = Path(urdf_path).expanduser().resolve()
-        name, links, joints, link_spheres = _parse_urdf(path)
-        self.urdf_path: Path = path
+        model = read_urdf(urdf_path)
+        self.urdf_path: Path = model.path
         """Absolute path of the URDF."""
-        self.name: str = name
+        self.name: str = model.name
         """Robot name from the URDF (``"allegro_right"`` for the shipped model)."""
-
-        parent_joint: dict[str, _Joint] = {}
-        for j in joints:
-            if j.child in parent_joint:
-                raise ModelError(
-                    f"{path}: link {j.child!r} has two parents (joints "
-                    f"{parent_joint[j.child].name!r} and {j.name!r}); only trees are supported"
-                )
-            parent_joint[j.child] = j
-        if len({j.name for j in joints}) != len(joints):
-            raise ModelError(f"{path}: duplicate joint names")
-        roots = [ln for ln in links if ln not in parent_joint]
-        if len(roots) != 1:
-            raise ModelError(
-                f"{path}: expected exactly one root link, found {roots} (a kinematic loop or "
-                "disconnected links)"
-            )
-        self.root_link: str = roots[0]
+        self.root_link: str = model.root_link
         """Root link (the palm frame)."""
-        children: dict[str, list[_Joint]] = {ln: [] for ln in links}
-        for j in joints:
-            children[j.parent].append(j)
-        order, stack = [], [self.root_link]  # depth-first, children in file order
-        while stack:
-            ln = stack.pop()
-            order.append(ln)
-            stack.extend(j.child for j in reversed(children[ln]))
-        if len(order) != len(links):
-            missing = sorted(set(links) - set(order))
-            raise ModelError(f"{path}: links {missing} are not reachable from root {self.root_link!r} (loop)")
-        self.link_names: tuple[str, ...] = tuple(order)
+        self.link_names: tuple[str, ...] = model.link_names
         """Every link, parents before children."""
+        self._parent_joint: dict[str, JointModel] = model.parent_joint
+        self._init_joints(model)
+        file_meta = load_metadata(model)
+        default = dict(file_meta.fingers) if file_meta is not None else {ln: ln for ln in model.leaves}
+        fingers = dict(fingers) if fingers is not None else default
+        for f, tip in fingers.items():
+            if tip not in model.children:
+                raise ModelError(f"{model.path}: finger {f!r}: tip link {tip!r} is not a link of the URDF")
+        same = file_meta is not None and list(fingers.items()) == list(file_meta.fingers.items())
+        self.metadata: HandMetadata = file_meta if same else fallback_metadata(fingers, file_meta)
+        """The hand's metadata (``hand.yaml``, or the fallback for a URDF without one)."""
+        self._init_fingers(model, fingers)
+        self._init_spheres(model)
+        self._spec_fingers = None if list(fingers.items()) == list(default.items()) else dict(fingers)
+        in_models = same and file_meta.source.parent.parent == models_dir().resolve()
+        self._model_name: str | None = file_meta.source.parent.name if in_models else None
+        self._fn_cache: dict[tuple, ca.Function] = {}
+        self._fast_cache: dict[str, tuple] = {}
 
-        self._joints = joints
-        self._parent_joint = parent_joint
-        actuated = [j for j in joints if j.type != "fixed" and j.mimic is None]
+    def _init_joints(self, model: UrdfModel) -> None:
+        actuated = [j for j in model.joints if j.type != "fixed" and j.mimic is None]
         self.joint_names: tuple[str, ...] = tuple(j.name for j in actuated)
         """Actuated joints = order of q (URDF order)."""
-        jidx = {n: i for i, n in enumerate(self.joint_names)}
-        for j in joints:
-            if j.mimic is not None and j.mimic[0] not in jidx:
-                raise ModelError(
-                    f"{path}: joint {j.name!r} mimics {j.mimic[0]!r}, which is not an actuated joint"
-                )
-        self._jidx = jidx
+        self._jidx = {n: i for i, n in enumerate(self.joint_names)}
         self.q_lower: NDArray[np.float64] = np.array([j.lower for j in actuated])
         """(n,) lower joint limits, rad or m (-inf for continuous joints)."""
         self.q_upper: NDArray[np.float64] = np.array([j.upper for j in actuated])
         """(n,) upper joint limits, rad or m (+inf for continuous joints)."""
 
-        leaves = [ln for ln in order if not children[ln]]
-        fingers = dict(fingers) if fingers is not None else {ln: ln for ln in leaves}
-        for f, tip in fingers.items():
-            if tip not in children:
-                raise ModelError(f"{path}: finger {f!r}: tip link {tip!r} is not a link of the URDF")
+    def _init_fingers(self, model: UrdfModel, fingers: dict[str, str]) -> None:
         self.fingers: tuple[str, ...] = tuple(fingers)
         """Finger names, in the order used by ``tip_positions``."""
         self.tip_links: dict[str, str] = fingers
         """finger -> tip link."""
         self.finger_joints: dict[str, NDArray[np.int64]] = {}
         """finger -> sorted int indices into q of the joints on the path root -> tip."""
-        path_links: dict[str, set[str]] = {}
+        self._path_links: dict[str, set[str]] = {}  # finger -> links on the path root -> tip
         for f, tip in fingers.items():
             chain, ln = [], tip
-            path_links[f] = {tip}
-            while ln in parent_joint:
-                j = parent_joint[ln]
-                if j.name in jidx:
-                    chain.append(jidx[j.name])
+            self._path_links[f] = {tip}
+            while ln in model.parent_joint:
+                j = model.parent_joint[ln]
+                if j.name in self._jidx:
+                    chain.append(self._jidx[j.name])
                 elif j.mimic is not None:
-                    chain.append(jidx[j.mimic[0]])
+                    chain.append(self._jidx[j.mimic[0]])
                 ln = j.parent
-                path_links[f].add(ln)
+                self._path_links[f].add(ln)
             self.finger_joints[f] = np.array(sorted(set(chain)), dtype=np.int64)
 
-        def finger_of(link: str) -> str | None:
-            ln, moved = link, False
-            while ln in parent_joint and not moved:
-                moved = parent_joint[ln].type != "fixed"
-                ln = parent_joint[ln].parent
-            if not moved:  # fixed to the root: palm
+    def _finger_of(self, link: str) -> str | None:
+        """The finger whose joints move `link` (None: fixed to the root, or shared by several fingers)."""
+        parent_joint = self._parent_joint
+        ln, moved = link, False
+        while ln in parent_joint and not moved:
+            moved = parent_joint[ln].type != "fixed"
+            ln = parent_joint[ln].parent
+        if not moved:  # fixed to the root: palm
+            return None
+        ln = link
+        while True:
+            owners = [f for f in self.fingers if ln in self._path_links[f]]
+            if len(owners) == 1:
+                return owners[0]
+            if owners or ln not in parent_joint:
                 return None
-            ln = link
-            while True:
-                owners = [f for f in self.fingers if ln in path_links[f]]
-                if len(owners) == 1:
-                    return owners[0]
-                if owners or ln not in parent_joint:
-                    return None
-                ln = parent_joint[ln].parent
+            ln = parent_joint[ln].parent
 
+    def _init_spheres(self, model: UrdfModel) -> None:
+        """Sphere assignment: each link's spheres to the finger that moves it; one tip sphere per finger
+        (the ``tip_contact`` sphere of the tip link, else its first sphere, else a point)."""
         spheres: list[CollisionSphere] = []
         tip_sphere: dict[str, CollisionSphere] = {}
-        tip_by_link = {tip: f for f, tip in fingers.items()}
-        for ln in order:
-            items = link_spheres[ln]
+        tip_by_link = {tip: f for f, tip in self.tip_links.items()}
+        for ln in self.link_names:
+            items = model.spheres[ln]
             tip_k = None
             if ln in tip_by_link:
-                named = [k for k, s in enumerate(items) if s[0] == "tip_contact"]
+                named = [k for k, s in enumerate(items) if s.name == "tip_contact"]
                 tip_k = named[0] if named else (0 if items else None)
                 if tip_k is None:
-                    logger.warning("%s: tip link %r has no collision sphere; using a point tip", path, ln)
+                    logger.warning("%s: tip link %r has no collision sphere; using a point tip",
+                                   model.path, ln)
                     tip_sphere[tip_by_link[ln]] = CollisionSphere(
                         ln, np.zeros(3), 0.0, tip_by_link[ln], True, f"{ln}#tip"
                     )
-            owner = finger_of(ln)
+            owner = self._finger_of(ln)
             k_nontip = 0
-            for k, (_, c, r) in enumerate(items):
+            for k, s in enumerate(items):
                 if k == tip_k:
                     tip_sphere[tip_by_link[ln]] = CollisionSphere(
-                        ln, c, r, tip_by_link[ln], True, f"{ln}#tip"
+                        ln, s.center_link, s.radius, tip_by_link[ln], True, f"{ln}#tip"
                     )
                 else:
-                    spheres.append(CollisionSphere(ln, c, r, owner, False, f"{ln}#{k_nontip}"))
+                    spheres.append(
+                        CollisionSphere(ln, s.center_link, s.radius, owner, False, f"{ln}#{k_nontip}")
+                    )
                     k_nontip += 1
         self._tip_sphere = tip_sphere
         self.spheres: tuple[CollisionSphere, ...] = tuple(spheres) + tuple(
@@ -320,28 +200,42 @@ class Hand:
         """finger -> radius of its tip contact sphere, m."""
         radii = set(self.tip_radii.values())
         if len(radii) > 1:
-            logger.warning("%s: fingertip radii differ %s; tip_radius is their maximum", path, self.tip_radii)
+            logger.warning("%s: fingertip radii differ %s; tip_radius is their maximum", model.path,
+                           self.tip_radii)
         self.tip_radius: float = max(radii) if radii else 0.0
         """Radius of the fingertip contact sphere, m."""
-        self._spec_fingers = None if fingers == {ln: ln for ln in leaves} else dict(fingers)
-        self._fn_cache: dict[tuple, ca.Function] = {}
-        self._fast_cache: dict[str, tuple] = {}
 
     # ------------------------------------------------------------------ construction helpers
     @classmethod
     def from_urdf(cls, path: str | Path, fingers: dict[str, str] | None = None) -> Hand:
-        """Build a Hand from a URDF file; ``fingers`` maps finger name -> tip link (default: leaf links)."""
+        """Build a Hand from a URDF file; ``fingers`` maps finger name -> tip link (default: the
+        ``hand.yaml`` beside the URDF, else the leaf links)."""
         return cls(path, fingers)
 
     @classmethod
+    def from_model(cls, model: str | Path) -> Hand:
+        """A hand model: a shipped model's name (``"allegro_right"``) or a model folder (URDF + hand.yaml).
+
+        Raises:
+            ModelError: unknown model, no ``hand.yaml``, or an invalid URDF or metadata file.
+        """
+        return cls(model_urdf(model))
+
+    @classmethod
     def allegro_right(cls) -> Hand:
-        """The shipped Allegro hand v4 (right) model, ``models/allegro_right/allegro_right.urdf``."""
-        return cls(ALLEGRO_RIGHT_URDF, ALLEGRO_FINGERS)
+        """The shipped Allegro hand v4 (right) model, ``models/allegro_right``."""
+        return cls.from_model("allegro_right")
+
+    @classmethod
+    def default(cls) -> Hand:
+        """The default hand model (`hand_model.DEFAULT_MODEL`)."""
+        return cls.from_model(DEFAULT_MODEL)
 
     def spec(self) -> dict:
-        """How to rebuild this hand: ``{"model": "allegro_right"}`` or ``{"urdf": "/abs/path"}``."""
-        if self.urdf_path == ALLEGRO_RIGHT_URDF.resolve() and self.tip_links == ALLEGRO_FINGERS:
-            return {"model": "allegro_right"}
+        """How to rebuild this hand: ``{"model": "allegro_right"}`` (a shipped model with its own fingers)
+        or ``{"urdf": "/abs/path"}`` (plus ``"fingers"`` when they are not the default ones)."""
+        if self._model_name is not None:
+            return {"model": self._model_name}
         spec: dict = {"urdf": str(self.urdf_path)}
         if self._spec_fingers is not None:
             spec["fingers"] = dict(self._spec_fingers)
@@ -350,13 +244,33 @@ class Hand:
     @classmethod
     def from_spec(cls, spec: dict) -> Hand:
         """Inverse of ``spec()``. Raises ModelError for an unknown model or a malformed spec."""
-        if spec.get("model") == "allegro_right":
-            return cls.allegro_right()
         if "model" in spec:
-            raise ModelError(f"unknown hand model {spec['model']!r} (known: 'allegro_right')")
+            return cls.from_model(spec["model"])
         if "urdf" not in spec:
             raise ModelError(f"hand spec needs 'model' or 'urdf', got {spec!r}")
         return cls(spec["urdf"], spec.get("fingers"))
+
+    # ------------------------------------------------------------------ metadata
+    @property
+    def thumb(self) -> str | None:
+        """The finger that opposes the others (``hand.yaml``'s ``thumb``; None: no thumb)."""
+        return self.metadata.thumb
+
+    @property
+    def gait_forward(self) -> tuple[str, ...]:
+        """The forward gait order (``hand.yaml``'s ``gait.forward``; default: finger order)."""
+        return self.metadata.gait_forward
+
+    @functools.cached_property
+    def grasp_region(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(lower (3,), upper (3,)), palm frame, m: the box where grasp generation samples the object
+        centre. ``hand.yaml``'s ``grasp_region``, else the box spanned by the fingertip centres at
+        mid-range joints."""
+        if self.metadata.grasp_region is not None:
+            lower, upper = self.metadata.grasp_region
+            return np.array(lower), np.array(upper)
+        p_palm_tips = self.tip_positions(self.q_mid())
+        return p_palm_tips.min(axis=0), p_palm_tips.max(axis=0)
 
     @property
     def n_joints(self) -> int:
@@ -607,7 +521,7 @@ class Hand:
         ]
 
 
-def _joint_motion(j: _Joint, qi) -> ca.SX:
+def _joint_motion(j: JointModel, qi) -> ca.SX:
     """(4, 4) SX transform of a moving joint at value ``qi``: rotation about / translation along ``axis``."""
     M = ca.SX.eye(4)
     if j.type == "prismatic":

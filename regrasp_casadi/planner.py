@@ -87,18 +87,17 @@ class PlannerOptions:
 
 def gait_pattern(hand: Hand, contacts_object: NDArray[np.float64],
                  goal_contacts_object: NDArray[np.float64]) -> tuple[str, ...]:
-    """The paper's gait-pattern rule (§IV): {index, middle, ring, thumb} when the index finger's goal
-    contact is farther from the middle finger than from the index finger, else {thumb, ring, middle, index}.
-
-    Hands without fingers named index and middle use their finger order.
+    """The paper's gait-pattern rule (§IV) on the hand's forward order `hand.gait_forward` (Allegro, from
+    its hand.yaml: index, middle, ring, thumb): forward when the first finger's goal contact is farther from
+    the second finger's contact than from the first finger's own, else reversed (thumb, ring, middle,
+    index). A hand whose metadata does not make the order reversible (a URDF without hand.yaml) always
+    uses its forward order.
     """
-    fingers = tuple(hand.fingers)
-    if "index" not in fingers or "middle" not in fingers:
-        return fingers
-    i, m = fingers.index("index"), fingers.index("middle")
+    forward = tuple(hand.gait_forward)
+    if not hand.metadata.gait_reversible or len(forward) < 2:
+        return forward
+    i, m = hand.fingers.index(forward[0]), hand.fingers.index(forward[1])
     goal = goal_contacts_object[i]
-    forward = tuple(f for f in ("index", "middle", "ring", "thumb") if f in fingers)
-    forward += tuple(f for f in fingers if f not in forward)
     if np.linalg.norm(goal - contacts_object[m]) > np.linalg.norm(goal - contacts_object[i]):
         return forward
     return tuple(reversed(forward))

@@ -122,7 +122,11 @@ def _load_hand(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> Hand:
     try:
         if isinstance(v, str):
             return Hand.from_spec({"model": v})
-        m = _mapping(ctx, "hand", v, ("urdf", "fingers"), ("urdf",))
+        m = _mapping(ctx, "hand", v, ("model", "urdf", "fingers"))
+        if ("model" in m) == ("urdf" in m):
+            raise ctx.error("hand", "give exactly one of 'model' (a model name or folder) or 'urdf'")
+        if "model" in m:
+            return _load_model(ctx, m, base_dir)
         if not isinstance(m["urdf"], str):
             raise ctx.error("hand.urdf", f"expected a path, got {m['urdf']!r}")
         path = pathlib.Path(m["urdf"]).expanduser()
@@ -137,6 +141,20 @@ def _load_hand(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> Hand:
         return Hand.from_urdf(path, fingers=fingers)
     except (ModelError, MeshError, KeyError, ValueError, TypeError) as e:
         raise ctx.error("hand", str(e)) from None
+
+
+def _load_model(ctx: _Ctx, m: dict, base_dir: pathlib.Path) -> Hand:
+    """``hand: {model: NAME}`` (a shipped model) or ``{model: FOLDER}`` (a model folder, relative to the
+    problem file when not absolute)."""
+    from regrasp_casadi.hand import Hand
+
+    if not isinstance(m["model"], str) or "fingers" in m:
+        raise ctx.error("hand.model", f"expected a model name or folder (no 'fingers'), got {m!r}")
+    name = m["model"]
+    if "/" in name or "\\" in name or name.startswith("."):
+        folder = pathlib.Path(name).expanduser()
+        return Hand.from_model(folder if folder.is_absolute() else base_dir / folder)
+    return Hand.from_model(name)
 
 
 def _load_object(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> ObjectModel:

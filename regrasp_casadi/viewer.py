@@ -64,7 +64,6 @@ _ROOT = "regrasp"          # under /meshcat
 _LABELS = "/Cameras/default/rotated/<object>/labels"
 _CAMERA_FOV_DEG = 75.0      # Meshcat's default perspective camera
 
-VIEW_TOWARD_PALM_SIDE = 0.6  # how much the camera turns from the grasp's side towards the palm side
 LIVE_VIEWERS: list = []     # live visualizers started by `show` (kept alive here)
 
 
@@ -254,26 +253,33 @@ def _scene_bounds(frames: list[Keyframe], obj: ObjectModel) -> tuple[NDArray, fl
     return center, radius
 
 
-def camera_offset(frames: list[Keyframe], center: NDArray, radius: float) -> NDArray:
+def camera_offset(frames: list[Keyframe], center: NDArray, radius: float,
+                  hand: Hand | None = None) -> NDArray:
     """Camera position relative to the scene centre (palm frame, m).
 
-    The camera looks across the grasp: perpendicular to the opposition axis (last finger, the thumb on
-    the Allegro, against the mean of the others) and to the palm -> object direction `u`, turned towards
-    `u` so that the palm side is seen, slightly raised; at a distance that fits a sphere of `radius`.
+    The camera looks across the grasp: perpendicular to the opposition axis (`hand.thumb`, else the last
+    finger, against the mean of the others) and to the palm -> object direction `u`, turned towards `u` so
+    that the palm side is seen, raised; the turn and the lift come from the hand's metadata
+    (`hand.metadata.camera`, from its hand.yaml; defaults without a hand). At a distance that fits a
+    sphere of `radius`.
     """
+    from regrasp_casadi.hand_model import CameraHint
+
+    view = hand.metadata.camera if hand is not None else CameraHint()
     f0 = frames[0]
     hand_c = np.mean([T[:3, 3] for T in f0.T_palm_link.values()], axis=0)
     u = f0.T_palm_object[:3, 3] - hand_c
     u = u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-6 else np.array([1.0, 0.0, 0.0])
     p = f0.p_palm_contacts
-    opp = p[-1] - p[:-1].mean(axis=0) if len(p) > 1 else np.array([0.0, 1.0, 0.0])
+    k = hand.fingers.index(hand.thumb) if hand is not None and hand.thumb is not None else len(p) - 1
+    opp = p[k] - np.delete(p, k, axis=0).mean(axis=0) if len(p) > 1 else np.array([0.0, 1.0, 0.0])
     side = np.cross(u, opp)
     if np.linalg.norm(side) < 1e-6:
         side = np.cross(u, np.array([0.0, 0.0, 1.0]))
     if np.linalg.norm(side) < 1e-6:
         side = np.array([0.0, 1.0, 0.0])
     side /= np.linalg.norm(side)
-    v = side + VIEW_TOWARD_PALM_SIDE * u + 0.3 * np.array([0.0, 0.0, 1.0])
+    v = side + view.toward_palm_side * u + np.asarray(view.lift_palm, dtype=float)
     v /= np.linalg.norm(v)
     dist = 1.2 * radius / np.tan(np.radians(_CAMERA_FOV_DEG) / 2.0)
     return v * dist
@@ -431,7 +437,7 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
     vis["/Axes"].set_property("visible", False)
     vis["/Background"].set_property("top_color", [1.0, 1.0, 1.0])
     vis["/Background"].set_property("bottom_color", [1.0, 1.0, 1.0])
-    off = camera_offset(frames, center, radius)
+    off = camera_offset(frames, center, radius, hand)
     vis["/Cameras/default"].set_transform(np.eye(4))
     # the camera lives in a frame rotated +90° about x (three.js y-up): world (a, b, c) -> (a, c, -b)
     vis["/Cameras/default/rotated/<object>"].set_property("position", [off[0], off[2], -off[1]])

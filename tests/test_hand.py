@@ -12,7 +12,7 @@ import yourdfpy
 from scipy.optimize import least_squares
 
 from regrasp_casadi.errors import ModelError
-from regrasp_casadi.hand import ALLEGRO_RIGHT_URDF, Hand
+from regrasp_casadi.hand import Hand
 
 N_CONFIGS = 100
 
@@ -42,7 +42,7 @@ def _compare_with_yourdfpy(hand: Hand, urdf_path: Path) -> tuple[float, float]:
 
 
 def test_fk_matches_yourdfpy_shipped_model(hand):
-    max_p, max_r = _compare_with_yourdfpy(hand, ALLEGRO_RIGHT_URDF)
+    max_p, max_r = _compare_with_yourdfpy(hand, hand.urdf_path)
     assert max_p <= 1e-9 and max_r <= 1e-9
 
 

@@ -28,7 +28,9 @@ def test_model_folder_is_complete_and_loads(model_dir):
         assert (model_dir / name).is_file(), name
         assert (model_dir / name).read_text().strip(), name
     ref = yourdfpy.URDF.load(str(urdfs[0]), load_meshes=False, build_collision_scene_graph=False)
-    hand = Hand.from_urdf(urdfs[0])
+    hand = Hand.from_model(model_dir.name)  # the folder's hand.yaml names the URDF and the fingers
+    assert hand.urdf_path == urdfs[0].resolve() and hand.spec() == {"model": model_dir.name}
+    assert hand.metadata.source == (model_dir / "hand.yaml").resolve()
     assert hand.joint_names == tuple(ref.actuated_joint_names)
     assert hand.root_link == ref.base_link
     assert np.all(hand.q_lower < hand.q_upper)
