@@ -190,8 +190,8 @@ def _urdf_spheres(ref: yourdfpy.URDF) -> dict[str, tuple[str, np.ndarray, float]
 
 
 @pytest.fixture(scope="module")
-def urdf_ref():
-    return yourdfpy.URDF.load(str(ALLEGRO_RIGHT_URDF), load_meshes=False, build_collision_scene_graph=False)
+def urdf_ref(hand):
+    return yourdfpy.URDF.load(str(hand.urdf_path), load_meshes=False, build_collision_scene_graph=False)
 
 
 def test_sphere_centres_are_the_urdf_collision_spheres_placed_by_yourdfpy(hand, urdf_ref):
