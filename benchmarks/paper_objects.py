@@ -57,6 +57,14 @@ OBJECTS = {  # paper label -> YCB folder
     "sugar-box": "004_sugar_box",
     "pringles": "001_chips_can",
 }
+YCB_NAMES = {ycb: label for label, ycb in OBJECTS.items()}
+
+
+def object_label(name: str) -> str:
+    """The paper label of an object given by its label or its YCB name (`004_sugar_box` -> `sugar-box`)."""
+    return YCB_NAMES.get(name, name)
+
+
 SEED = 2018
 ZETA = 0.006  # 6 mm: success threshold on the average point error, as the paper's ζ
 
@@ -363,16 +371,19 @@ def _finite(x):
 
 # ------------------------------------------------------------------------------------------- main
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--objects", nargs="+", default=list(OBJECTS), choices=list(OBJECTS))
-    parser.add_argument("--pairs", type=int, default=5, help="regrasp pairs per object (default 5)")
-    parser.add_argument("--methods", nargs="+", default=["svd", "sd"], choices=["svd", "sd"])
-    parser.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
-    parser.add_argument("--max-iters", type=int, default=50)
-    parser.add_argument("--out-dir", type=pathlib.Path, default=HERE / "results")
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--objects", nargs="+", default=list(OBJECTS), choices=list(OBJECTS), type=object_label,
+                        metavar="OBJECT", help=f"paper labels ({', '.join(OBJECTS)}) or YCB names "
+                        f"({', '.join(OBJECTS.values())})")
+    parser.add_argument("--pairs", type=int, default=5, help="regrasp pairs per object")
+    parser.add_argument("--methods", nargs="+", default=["svd", "sd"], choices=["svd", "sd"], help="OPT2 objectives")
+    parser.add_argument("--workers", type=int, default=1, help="parallel processes")
+    parser.add_argument("--max-iters", type=int, default=50, help="planner iteration limit")
+    parser.add_argument("--out-dir", type=pathlib.Path, default=HERE / "results", help="folder of the results")
     parser.add_argument("--problems-dir", type=pathlib.Path, default=HERE / "problems",
                         help="cache of generated pairs (problem files)")
-    parser.add_argument("--no-plots", action="store_true")
+    parser.add_argument("--no-plots", action="store_true", help="no convergence and error plots")
     args = parser.parse_args(argv)
     if not YCB_DIR.is_dir():
         print(f"YCB meshes not found: {YCB_DIR}", file=sys.stderr)

@@ -13,6 +13,7 @@ Exit codes:
     2  bad input: unreadable or invalid problem / plan / mesh file, bad arguments (a `RegraspError`)
     3  unexpected internal error (run again with --verbose for the traceback)
     130 interrupted (Ctrl-C)
+    141 stdout was closed by its reader (`regrasp verify plan.json | head -1`): output stops quietly
 
 Errors are printed as one line, ``regrasp: error: <message>``, on stderr; `--verbose` adds the traceback
 and INFO logging. This is the only module of the package (with the examples) that prints.
@@ -21,7 +22,9 @@ and INFO logging. This is the only module of the package (with the examples) tha
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
+import os
 import runpy
 import signal
 import sys
@@ -30,6 +33,22 @@ import traceback
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from regrasp_casadi.cli_tools import (
+    HelpFormatter,
+    Parser,
+    check_host,
+    check_output,
+    found_progress,
+    non_negative_float,
+    non_negative_int,
+    plan_progress,
+    positive_float,
+    positive_int,
+    progress_bar,
+    progress_enabled,
+)
+from regrasp_casadi.cli_tools import UserError as _UserError
+from regrasp_casadi.cli_tools import print_error as _err
 from regrasp_casadi.resources import builtin_problem
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -42,6 +61,7 @@ EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
 EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 128 + 13   # as a process killed by SIGPIPE: the reader of stdout went away
 
 DEMO_PROBLEM = builtin_problem("box_rotate")   # package data (regrasp_casadi.problems)
 # the benchmark scripts are not package data: `regrasp bench` needs a source checkout
@@ -53,36 +73,11 @@ _EPILOG = """exit codes:
   2    bad input (unreadable or invalid problem, plan or mesh file; bad arguments)
   3    unexpected internal error (use --verbose for the traceback)
   130  interrupted
+  141  stdout closed by its reader (e.g. `regrasp verify plan.json | head -1`)
 """
 
 
-class _UserError(Exception):
-    """An input problem detected by the CLI itself (exit code 2)."""
-
-
-def _err(msg: str) -> None:
-    print(f"regrasp: error: {msg}", file=sys.stderr)
-
-
 # ---------------------------------------------------------------------------------------------- helpers
-def _progress(max_iters: int, enabled: bool):
-    """A tqdm bar on stderr driven by the planner's progress callback; returns (callback, close)."""
-    if not enabled:
-        return None, lambda: None
-    from tqdm import tqdm
-
-    bar = tqdm(total=max_iters, desc="planning", unit="it", file=sys.stderr, leave=False,
-               dynamic_ncols=True)
-
-    def callback(iteration: int, max_it: int, avg_error_m: float) -> None:
-        bar.total = max_it
-        bar.n = min(iteration, max_it)
-        bar.set_postfix_str(f"avg error {avg_error_m * 1e3:.2f} mm", refresh=False)
-        bar.refresh()
-
-    return callback, bar.close
-
-
 def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool) -> Plan:
     from regrasp_casadi.planner import plan_regrasp
 
@@ -90,22 +85,25 @@ def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool) 
     if max_iters is not None:
         kwargs["max_iters"] = max_iters
     n_max = max_iters if max_iters is not None else 50
-    callback, close = _progress(n_max, show_progress)
-    try:
-        return plan_regrasp(problem.grasp0, problem.grasp_goal, progress=callback, **kwargs)
-    finally:
-        close()
+    with progress_bar("planning", show_progress, total=n_max) as bar:
+        plan = plan_regrasp(problem.grasp0, problem.grasp_goal, progress=plan_progress(bar), **kwargs)
+        if bar is not None:   # the bar ends where the plan stopped, at 100 %
+            bar.total = bar.n = plan.iterations
+            bar.refresh()
+    return plan
 
 
-def _verify(plan: Plan, hand=None, obj=None):
+def _verify(plan: Plan, hand=None, obj=None, show_progress: bool = False):
     from regrasp_casadi.verify import verify
 
-    return verify(plan, hand, obj)
+    with progress_bar(f"verifying {len(plan.steps)} steps", show_progress):
+        return verify(plan, hand, obj)
 
 
-def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, elapsed: float) -> int:
+def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, elapsed: float,
+                 show_progress: bool = False) -> int:
     """Verify, save, write the replay, print the summary; returns the exit code."""
-    report = _verify(plan, hand, obj)
+    report = _verify(plan, hand, obj, show_progress)
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
         plan.save(out)
@@ -153,7 +151,7 @@ def _hand(name: str):
     return Hand.from_urdf(name) if name.lower().endswith(".urdf") else Hand.from_model(name)
 
 
-def _view_live(plan: Plan, hand=None, obj=None) -> int:
+def _view_live(plan: Plan, hand=None, obj=None, host: str = "127.0.0.1") -> int:
     from regrasp_casadi.viewer import show
 
     def stop(signum, frame):  # SIGTERM ends like Ctrl-C, so that the Meshcat server is shut down
@@ -161,7 +159,7 @@ def _view_live(plan: Plan, hand=None, obj=None) -> int:
 
     previous = signal.signal(signal.SIGTERM, stop)
     try:
-        url = show(plan, hand=hand, obj=obj)
+        url = show(plan, hand=hand, obj=obj, host=host)
         print(f"viewer: {url}  (Ctrl-C to stop)", flush=True)
         while True:
             time.sleep(1.0)
@@ -179,24 +177,31 @@ def _view_live(plan: Plan, hand=None, obj=None) -> int:
 def cmd_plan(args: argparse.Namespace) -> int:
     from regrasp_casadi.problem import RegraspProblem
 
+    out, html = check_output("--out", args.out), check_output("--html", args.html)
+    if args.view:
+        check_host(args.host)
     problem = RegraspProblem.load(args.problem)
     t0 = time.perf_counter()
-    plan = _run_plan(problem, args.method, args.max_iters, not args.no_progress)
-    code = _finish_plan(plan, problem.hand, problem.obj, Path(args.out),
-                        Path(args.html) if args.html else None, time.perf_counter() - t0)
+    progress = progress_enabled(args)
+    plan = _run_plan(problem, args.method, args.max_iters, progress)
+    code = _finish_plan(plan, problem.hand, problem.obj, out, html, time.perf_counter() - t0, progress)
     if args.view:
-        _view_live(plan, problem.hand, problem.obj)
+        _view_live(plan, problem.hand, problem.obj, args.host)
     return code
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
     plan = _load_plan(args.plan)
-    report = _verify(plan)
+    report = _verify(plan, show_progress=progress_enabled(args))
     print(report.summary(max_violations=len(report.violations) if args.all else 20))
     return EXIT_OK if report.ok else EXIT_FAILED
 
 
 def cmd_view(args: argparse.Namespace) -> int:
+    check_output("--html", args.html)
+    check_output("--png", args.png)
+    if not (args.html or args.png):
+        check_host(args.host)
     plan = _load_plan(args.plan)
     if args.html or args.png:
         import tempfile
@@ -214,7 +219,7 @@ def cmd_view(args: argparse.Namespace) -> int:
                 png = screenshot(path, args.png, seconds=seconds)
                 print(f"wrote {png} (the replay at {seconds:.1f} s)")
         return EXIT_OK
-    return _view_live(plan)
+    return _view_live(plan, host=args.host)
 
 
 def cmd_grasps(args: argparse.Namespace) -> int:
@@ -222,31 +227,38 @@ def cmd_grasps(args: argparse.Namespace) -> int:
         import regrasp_casadi.grasp_gen as grasp_gen
     except ImportError as e:
         raise _UserError(f"grasp generation is not available (regrasp_casadi.grasp_gen: {e})") from None
+    out = check_output("--out", args.out)
+    progress = progress_enabled(args)
     src = Path(args.source)
     if src.suffix.lower() in (".yaml", ".yml"):
         from regrasp_casadi.problem import RegraspProblem
 
-        problem = RegraspProblem.load(src)
+        with progress_bar(f"loading {src.name}", progress):
+            problem = RegraspProblem.load(src)
         hand, obj = problem.hand, problem.obj
     else:
         from regrasp_casadi.objects import ObjectModel
 
         if not src.is_file():
             raise _UserError(f"{src}: no such mesh or problem file")
-        obj = ObjectModel.from_mesh(src, scale=args.scale)
-        hand = _hand(args.hand)
-    if args.out:
+        with progress_bar(f"loading {src.name} (convex decomposition)", progress):
+            obj = ObjectModel.from_mesh(src, scale=args.scale)
+            hand = _hand(args.hand)
+    if out is not None:
         from regrasp_casadi.problem import RegraspProblem
 
-        (g0, gg), = grasp_gen.generate_regrasp_pairs(hand, obj, 1, seed=args.seed)
-        out = Path(args.out)
+        with progress_bar("regrasp pair", progress, total=1, unit="pair") as bar:
+            (g0, gg), = grasp_gen.generate_regrasp_pairs(hand, obj, 1, seed=args.seed,
+                                                         progress=found_progress(bar))
         out.parent.mkdir(parents=True, exist_ok=True)
         problem = RegraspProblem(out.stem, f"generated by `regrasp grasps` (seed {args.seed})", None,
                                  hand, obj, g0, gg, {})
         problem.save(out)
         print(f"wrote regrasp problem {out} (object {obj.name}, seed {args.seed})")
         return EXIT_OK
-    grasps = grasp_gen.generate_grasps(hand, obj, n=args.n, seed=args.seed)
+    with progress_bar("grasps", progress, total=args.n, unit="grasp") as bar:
+        grasps = grasp_gen.generate_grasps(hand, obj, n=args.n, seed=args.seed,
+                                           progress=found_progress(bar))
     for k, g in enumerate(grasps):
         t = g.T_palm_object[:3, 3] * 1e3
         q = grasp_gen.grasp_quality(g)
@@ -287,50 +299,62 @@ def _demo_problem():
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    out_dir = check_output("--out-dir", args.out_dir, folder=True)
     problem = _demo_problem()
-    out_dir = Path(args.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     print(f"demo: regrasp of {problem.obj.name!r} ({problem.name}) with the {args.method} method")
     t0 = time.perf_counter()
-    plan = _run_plan(problem, args.method, None, not args.no_progress)
+    progress = progress_enabled(args)
+    plan = _run_plan(problem, args.method, None, progress)
     code = _finish_plan(plan, problem.hand, problem.obj, out_dir / "plan.json", out_dir / "replay.html",
-                        time.perf_counter() - t0)
+                        time.perf_counter() - t0, progress)
     print(f"open {out_dir / 'replay.html'} in a browser to watch the regrasp")
     return code
 
 
 # ---------------------------------------------------------------------------------------------- parser
+def _add_host(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
+                        help="address the live viewer listens on; 127.0.0.1 is this machine only, "
+                             "0.0.0.0 opens it to the network")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The `regrasp` argument parser (one subparser per command)."""
     from regrasp_casadi import __version__
     from regrasp_casadi.hand_model import DEFAULT_MODEL
 
     # --verbose is accepted before and after the command; the subcommands' copy must not reset it
-    common = argparse.ArgumentParser(add_help=False)
+    common = Parser(add_help=False)
     common.add_argument("--verbose", "-v", action="store_true", default=argparse.SUPPRESS,
                         help="INFO logging and full tracebacks on errors")
-    p = argparse.ArgumentParser(
+    common.add_argument("--quiet", "-q", action="store_true", default=argparse.SUPPRESS,
+                        help="no progress bars (they are only drawn when stderr is a terminal)")
+    p = Parser(
         prog="regrasp", epilog=_EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=HelpFormatter,
         description="Geometric in-hand regrasp planning (Sundaralingam & Hermans, ICRA 2018) for the "
                     "Allegro hand: plan, verify and replay regrasps.")
     p.add_argument("--verbose", "-v", action="store_true", help="INFO logging and full tracebacks on errors")
+    p.add_argument("--quiet", "-q", action="store_true",
+                   help="no progress bars (they are only drawn when stderr is a terminal)")
     p.add_argument("--version", action="version", version=f"regrasp {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     def add(name: str, help_: str) -> argparse.ArgumentParser:
         return sub.add_parser(name, parents=[common], help=help_, description=help_, epilog=_EPILOG,
-                              formatter_class=argparse.RawDescriptionHelpFormatter)
+                              formatter_class=HelpFormatter)
 
     sp = add("plan", "plan a regrasp for a problem file, verify it, save it (and its HTML replay)")
     sp.add_argument("problem", metavar="PROBLEM.yaml", help="regrasp problem file (YAML)")
     sp.add_argument("--method", choices=("svd", "sd"), default="svd",
                     help="in-grasp objective E_des: svd (Kabsch pose) or sd (workspace distance)")
-    sp.add_argument("--out", default="plan.json", metavar="PLAN.json",
-                    help="plan file to write (default: plan.json)")
+    sp.add_argument("--out", default="plan.json", metavar="PLAN.json", help="plan file to write")
     sp.add_argument("--html", metavar="REPLAY.html", help="also write a self-contained HTML replay")
     sp.add_argument("--view", action="store_true", help="open the live viewer after planning")
-    sp.add_argument("--max-iters", type=int, metavar="N", help="planner iteration limit (default 50)")
+    _add_host(sp)
+    sp.add_argument("--max-iters", type=non_negative_int, metavar="N",
+                    help="planner iteration limit (default: 50, the planner's)")
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
     sp.set_defaults(func=cmd_plan)
 
@@ -344,8 +368,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--html", metavar="REPLAY.html", help="write the HTML replay and exit")
     sp.add_argument("--png", metavar="SHOT.png",
                     help="write a screenshot of the replay (needs chromium) and exit")
-    sp.add_argument("--at", type=float, metavar="SECONDS",
-                    help="replay time of the screenshot (default: the end)")
+    sp.add_argument("--at", type=non_negative_float, metavar="SECONDS",
+                    help="replay time of the screenshot, s (default: the end)")
+    _add_host(sp)
     sp.set_defaults(func=cmd_view)
 
     sp = add("grasps", "generate precision grasps on a mesh (or a problem's object)")
@@ -353,9 +378,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--hand", default=DEFAULT_MODEL, metavar="MODEL",
                     help="hand for a mesh: a shipped model name, a model folder (with hand.yaml) or a URDF "
                          f"file (default: {DEFAULT_MODEL}); a problem file names its own hand")
-    sp.add_argument("--n", type=int, default=1, metavar="N", help="number of grasps to generate")
-    sp.add_argument("--seed", type=int, default=0, metavar="S", help="random seed")
-    sp.add_argument("--scale", type=float, default=1.0, help="mesh scale to metres (default 1.0)")
+    sp.add_argument("--n", type=positive_int, default=1, metavar="N", help="number of grasps to generate")
+    sp.add_argument("--seed", type=non_negative_int, default=0, metavar="S", help="random seed")
+    sp.add_argument("--scale", type=positive_float, default=1.0, help="mesh scale to metres")
     sp.add_argument("--out", metavar="PROBLEM.yaml",
                     help="write a regrasp problem (a generated initial/desired grasp pair) to this file")
     sp.set_defaults(func=cmd_grasps)
@@ -367,11 +392,21 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = add("demo", "plan, verify and replay a regrasp on the built-in box problem")
     sp.add_argument("--out-dir", default=".", metavar="DIR",
-                    help="folder for plan.json and replay.html (default: current directory)")
+                    help="folder for plan.json and replay.html (default: the current directory)")
     sp.add_argument("--method", choices=("svd", "sd"), default="svd", help="in-grasp objective")
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
     sp.set_defaults(func=cmd_demo)
     return p
+
+
+def _stdout_closed() -> int:
+    """The reader of stdout went away (`regrasp verify plan.json | head -1`): stop quietly, as a
+    process killed by SIGPIPE would; what is left in stdout's buffer goes to /dev/null."""
+    with contextlib.suppress(AttributeError, OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    return EXIT_BROKEN_PIPE
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -398,7 +433,11 @@ def main(argv: list[str] | None = None) -> int:
     from regrasp_casadi.errors import RegraspError
 
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        sys.stdout.flush()   # a closed pipe shows here, not at exit
+        return code
+    except BrokenPipeError:
+        return _stdout_closed()
     except KeyboardInterrupt:
         _err("interrupted")
         return EXIT_INTERRUPTED

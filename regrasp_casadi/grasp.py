@@ -26,7 +26,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
 
-__all__ = ["Grasp"]
+__all__ = ["Grasp", "CONTACT_TOL", "require_grasp"]
 
 JOINT_LIMIT_TOL = 1e-6
 """Slack on joint limits when validating a grasp, rad (m for prismatic joints)."""
@@ -34,11 +34,40 @@ JOINT_LIMIT_TOL = 1e-6
 RIGID_TOL = 1e-6
 """Tolerance on RᵀR = I, det R = 1 and the last row (0 0 0 1) of a rigid transform."""
 
+CONTACT_TOL = 0.5e-3
+"""Default tolerance of a grasp's contacts, m: |signed distance| of a contact (or of a tip sphere) to the
+surface, and distance between a tip's contact and the grasp's contact (`Grasp.inconsistency`)."""
+
 
 # --------------------------------------------------------------------------------------------- helpers
+def _check_models(hand: Any, obj: Any) -> None:
+    """`TypeError` naming the argument unless `hand` and `obj` look like a `Hand` and an `ObjectModel`."""
+    if not all(hasattr(hand, a) for a in ("fingers", "n_joints", "tip_positions", "tip_radius")):
+        raise TypeError(f"hand: expected a regrasp_casadi Hand, got {type(hand).__name__}")
+    if not all(hasattr(obj, a) for a in ("closest_points", "exact_signed_distance", "surface_normals")):
+        raise TypeError(f"obj: expected a regrasp_casadi ObjectModel, got {type(obj).__name__}")
+
+
+def require_grasp(value: Any, name: str) -> Grasp:
+    """`value` if it is a `Grasp`, else `TypeError` naming the argument `name` (for public entry points)."""
+    if not isinstance(value, Grasp):
+        raise TypeError(f"{name}: expected a Grasp (Grasp.from_joints / Grasp.from_contacts), "
+                        f"got {type(value).__name__}")
+    return value
+
+
+def _float_array(x: Any, what: str, expected: str) -> NDArray[np.float64]:
+    """`x` as a float array, or `GraspError` naming `what` when it holds something else than numbers."""
+    try:
+        return np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError):
+        shown = repr(x) if len(repr(x)) <= 40 else f"a {type(x).__name__}"
+        raise GraspError(f"{what}: expected {expected}, got {shown}") from None
+
+
 def _check_joints(hand: Hand, q: Any, what: str = "q") -> NDArray[np.float64]:
     """Validate a joint vector (count, finiteness, limits within `JOINT_LIMIT_TOL`); return it as (n,)."""
-    q = np.asarray(q, dtype=np.float64)
+    q = _float_array(q, what, f"{hand.n_joints} joint angles (rad)")
     if q.ndim != 1:
         raise GraspError(f"{what}: expected a 1-D vector of joint angles, got shape {q.shape}")
     if q.shape[0] != hand.n_joints:
@@ -60,7 +89,7 @@ def _check_joints(hand: Hand, q: Any, what: str = "q") -> NDArray[np.float64]:
 
 def _check_rigid(T: Any, what: str = "T_palm_object") -> NDArray[np.float64]:
     """Validate a proper rigid (4, 4) transform: RᵀR = I, det R = +1, last row (0, 0, 0, 1)."""
-    T = np.asarray(T, dtype=np.float64)
+    T = _float_array(T, what, "a (4, 4) rigid transform")
     if T.shape != (4, 4):
         raise GraspError(f"{what}: expected a (4, 4) transform, got shape {T.shape}")
     if not np.all(np.isfinite(T)):
@@ -138,7 +167,7 @@ class Grasp:
 
     @classmethod
     def from_joints(
-        cls, hand: Hand, obj: ObjectModel, q: Any, T_palm_object: Any, tol: float = 0.5e-3
+        cls, hand: Hand, obj: ObjectModel, q: Any, T_palm_object: Any, tol: float = CONTACT_TOL
     ) -> Grasp:
         """Grasp from a hand configuration; contacts are the exact closest mesh points of the tip centres.
 
@@ -150,10 +179,12 @@ class Grasp:
             tol: allowed |exact signed distance of a tip centre − tip radius|, m.
 
         Raises:
-            GraspError: wrong joint count, a joint outside its limits (named, with value and limits),
-                a transform that is not a proper rigid one, or a fingertip farther than `tol` from the
-                object surface (names the finger and the distance in mm).
+            TypeError: `hand` or `obj` is not a hand / object model.
+            GraspError: `q` or `T_palm_object` not numbers, wrong joint count, a joint outside its limits
+                (named, with value and limits), a transform that is not a proper rigid one, or a fingertip
+                farther than `tol` from the object surface (names the finger and the distance in mm).
         """
+        _check_models(hand, obj)
         q = _check_joints(hand, q)
         T = _check_rigid(T_palm_object)
         p_palm = np.asarray(hand.tip_positions(q), dtype=np.float64).reshape(-1, 3)
@@ -175,7 +206,7 @@ class Grasp:
         contacts_object: Any,
         T_palm_object: Any,
         q: Any = None,
-        tol: float = 0.5e-3,
+        tol: float = CONTACT_TOL,
     ) -> Grasp:
         """Grasp from contact points on the object (e.g. a desired grasp).
 
@@ -188,10 +219,12 @@ class Grasp:
             tol: allowed |exact signed distance| of a contact, m.
 
         Raises:
-            GraspError: wrong contacts shape, a contact farther than `tol` from the surface (names the
-                finger and the distance in mm), a bad transform or bad joints.
+            TypeError: `hand` or `obj` is not a hand / object model.
+            GraspError: contacts not numbers or of the wrong shape, a contact farther than `tol` from the
+                surface (names the finger and the distance in mm), a bad transform or bad joints.
         """
-        c = np.asarray(contacts_object, dtype=np.float64)
+        _check_models(hand, obj)
+        c = _float_array(contacts_object, "contacts_object", f"({len(hand.fingers)}, 3) contact points (m)")
         m = len(hand.fingers)
         if c.shape != (m, 3):
             raise GraspError(
@@ -213,3 +246,36 @@ class Grasp:
             grasp, "_tip_centers_cache", frozen_array(c + float(hand.tip_radius) * normals)
         )
         return grasp
+
+    def inconsistency(self, name: str = "grasp", tol: float = CONTACT_TOL) -> str:
+        """Why the joints `q` do not hold the object at this grasp's contacts ("" when they do).
+
+        For each finger, the tip sphere of `q` (object frame, through `T_palm_object`) must touch the
+        surface (|exact signed distance of its centre − tip radius| ≤ `tol`) at the grasp's contact
+        (closest surface point of the centre within `tol` of the contact row). `from_joints` grasps meet
+        this by construction; a `from_contacts` grasp given `q`, or a grasp whose `q`, pose or contacts
+        were replaced (`dataclasses.replace`), may not. A grasp without `q` is consistent.
+
+        Args:
+            name: how the grasp is named in the message (e.g. "grasp0").
+            tol: tolerance, m.
+
+        Returns:
+            "" or one line naming the finger and the distance in mm.
+        """
+        if self.q is None:
+            return ""
+        p_palm = np.asarray(self.hand.tip_positions(self.q), dtype=np.float64).reshape(-1, 3)
+        centers_object = transform_points(inv_T(np.asarray(self.T_palm_object)), p_palm)
+        closest, sd = self.obj.closest_points(centers_object)
+        gap = np.asarray(sd, dtype=np.float64) - float(self.hand.tip_radius)
+        slip = np.linalg.norm(np.asarray(closest, dtype=np.float64) - self.contacts_object, axis=1)
+        for finger, g, d in zip(self.hand.fingers, gap, slip, strict=True):
+            if not abs(g) <= tol:
+                where = "off" if g > 0 else "inside"
+                return (f"{name}: its joints q put the {finger} tip {abs(g) * 1e3:.1f} mm {where} the "
+                        f"object surface (tolerance {tol * 1e3:.1f} mm)")
+            if not d <= tol:
+                return (f"{name}: its joints q put the {finger} tip {d * 1e3:.1f} mm from its contact in "
+                        f"contacts_object (tolerance {tol * 1e3:.1f} mm)")
+        return ""

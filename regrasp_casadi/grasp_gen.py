@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import collections
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import casadi as ca
@@ -489,6 +490,7 @@ def generate_grasps(
     beta: float = 0.001,
     T_palm_object_guess: NDArray[np.float64] | None = None,
     max_attempts: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> list[Grasp]:
     """Feasible four-finger precision grasps on `obj` (see the module docstring for the method).
 
@@ -508,6 +510,7 @@ def generate_grasps(
         beta: clearance of the non-tip spheres, m.
         T_palm_object_guess: (4, 4) object pose in the palm frame to perturb (random poses if None).
         max_attempts: attempts before giving up (default 60·n).
+        progress: optional callable ``progress(found, attempts)`` called after every attempt.
 
     Returns:
         `n` grasps (with joints).
@@ -515,10 +518,11 @@ def generate_grasps(
     Raises:
         GraspError: if fewer than `n` grasps were found within `max_attempts`.
     """
-    return _generate(hand, obj, n, seed, mu, beta, T_palm_object_guess, max_attempts, None, 0.0)
+    return _generate(hand, obj, n, seed, mu, beta, T_palm_object_guess, max_attempts, None, 0.0, progress)
 
 
-def _generate(hand, obj, n, seed, mu, beta, guess, max_attempts, avoid, min_mean_distance) -> list[Grasp]:
+def _generate(hand, obj, n, seed, mu, beta, guess, max_attempts, avoid, min_mean_distance,
+              progress=None) -> list[Grasp]:
     max_attempts = 60 * n if max_attempts is None else int(max_attempts)
     nlp = _grasp_nlp(hand, obj, beta)
     data = _object_data(hand, obj)
@@ -532,8 +536,10 @@ def _generate(hand, obj, n, seed, mu, beta, guess, max_attempts, avoid, min_mean
                 g = None
         if g is not None:
             out.append(g)
-            if len(out) == n:
-                return out
+        if progress is not None:
+            progress(len(out), attempt + 1)
+        if len(out) == n:
+            return out
     raise GraspError(f"found {len(out)} of {n} grasps on {obj.name!r} in {max_attempts} attempts "
                      f"(seed {seed})")
 
@@ -548,6 +554,7 @@ def generate_regrasp_pairs(
     mu: float = 0.5,
     beta: float = 0.001,
     max_attempts: int = 40,
+    progress: Callable[[int, int], None] | None = None,
 ) -> list[tuple[Grasp, Grasp]]:
     """Pairs (initial grasp, desired grasp) for regrasp planning.
 
@@ -565,6 +572,7 @@ def generate_regrasp_pairs(
         mu: friction coefficient of the force-closure test.
         beta: non-tip clearance, m.
         max_attempts: attempts per desired grasp before drawing a new initial grasp.
+        progress: optional callable ``progress(found, attempts)`` called after every initial grasp tried.
 
     Returns:
         list of (grasp0, grasp_goal); both carry joints.
@@ -580,8 +588,11 @@ def generate_regrasp_pairs(
                              max_attempts, init.contacts_object, min_mean_distance)[0]
         except GraspError:
             log.debug("pair %d: no desired grasp for this initial grasp", i)
-            continue
-        pairs.append((init, goal))
+            goal = None
+        if goal is not None:
+            pairs.append((init, goal))
+        if progress is not None:
+            progress(len(pairs), i + 1)
         if len(pairs) == n_pairs:
             return pairs
     raise GraspError(f"found {len(pairs)} of {n_pairs} regrasp pairs on {obj.name!r} (seed {seed})")

@@ -355,4 +355,4 @@ def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> s
             return f"gait names unknown fingers {unknown}; the hand has {list(grasp0.hand.fingers)}"
     if not (options.zeta > 0 and options.eta > 0 and options.beta >= 0 and options.max_iters >= 0):
         return "zeta and eta must be positive, beta and max_iters non-negative"
-    return ""
+    return grasp0.inconsistency("grasp0")

@@ -42,6 +42,14 @@ PROBLEM_SCHEMA_VERSION = 1
 
 _TOP_KEYS = ("schema_version", "name", "description", "hand", "object", "grasp0", "grasp_goal")
 _PRIMITIVES = ("box", "cylinder", "sphere", "capsule", "bottle", "banana")
+_PRIMITIVE_DIMENSIONS = {  # the keys a problem file must give for each primitive (no silent defaults), m
+    "box": ("extents",),
+    "cylinder": ("radius", "height"),
+    "sphere": ("radius",),
+    "capsule": ("radius", "height"),
+    "bottle": ("body_radius", "body_height", "shoulder_height", "neck_radius", "neck_height"),
+    "banana": ("length", "thickness", "bend_radius"),
+}
 _MESH_KEYS = ("mesh", "scale", "sha256", "threshold", "max_planes_per_piece")
 
 
@@ -53,6 +61,52 @@ class _Ctx:
 
     def error(self, key: str, msg: str) -> ProblemFileError:
         return ProblemFileError(f"{self.path}: {key}: {msg}" if key else f"{self.path}: {msg}")
+
+
+class _DuplicateKey(yaml.YAMLError):
+    """A key given twice in one YAML mapping."""
+
+    def __init__(self, key: Any, line: int):
+        super().__init__(f"duplicate key {key!r} (line {line})")
+        self.key, self.line = key, line
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """`yaml.SafeLoader` that rejects a key given twice in one mapping (PyYAML keeps the last silently).
+    Keys merged in with ``<<`` may be overridden, as YAML allows."""
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            seen: set = set()
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    if key in seen:
+                        raise _DuplicateKey(key, key_node.start_mark.line + 1)
+                    seen.add(key)
+                except TypeError:   # an unhashable key: SafeLoader reports it
+                    pass
+        return super().construct_mapping(node, deep=deep)
+
+
+def _read_yaml(ctx: _Ctx, p: pathlib.Path) -> Any:
+    """The YAML document in `p` (UTF-8, no duplicate keys)."""
+    try:
+        data = p.read_bytes()
+    except OSError as e:
+        raise ctx.error("", f"cannot read problem file: {e.strerror or e}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ctx.error("", f"not a UTF-8 text file (byte {e.start}: {e.reason})") from None
+    try:
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader: plain data only
+    except _DuplicateKey as e:
+        raise ctx.error("", str(e)) from None
+    except yaml.YAMLError as e:
+        raise ctx.error("", f"invalid YAML: {e}") from None
 
 
 def _is_number(x: Any) -> bool:
@@ -177,6 +231,10 @@ def _load_object(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> ObjectModel:
                             f"unknown primitive {kind!r} (one of {', '.join(_PRIMITIVES)})")
         params = [p for p in inspect.signature(getattr(ObjectModel, kind)).parameters if p != "cls"]
         _mapping(ctx, "object", v, ("primitive", *params))
+        missing = [k for k in _PRIMITIVE_DIMENSIONS[kind] if k not in v]
+        if missing:
+            raise ctx.error("object", f"primitive {kind} needs its dimensions: missing key(s) "
+                                      f"{', '.join(missing)} (m)")
         for k, x in v.items():
             if k == "extents":
                 ext = _numbers(ctx, "object.extents", x, 3)
@@ -233,14 +291,7 @@ class RegraspProblem:
         shown = str(path)
         ctx = _Ctx(shown)
         p = pathlib.Path(path)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except OSError as e:
-            raise ctx.error("", f"cannot read problem file: {e.strerror or e}") from None
-        try:
-            raw = yaml.safe_load(text)
-        except yaml.YAMLError as e:
-            raise ctx.error("", f"invalid YAML: {e}") from None
+        raw = _read_yaml(ctx, p)
         if not isinstance(raw, dict):
             raise ctx.error("", "expected a mapping at the top level")
         _mapping(ctx, "", raw, _TOP_KEYS, ("schema_version", "hand", "object", "grasp0", "grasp_goal"))

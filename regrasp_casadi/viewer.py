@@ -594,25 +594,43 @@ def write_html(plan: Plan, path: str | Path, hand: Hand | None = None, obj: Obje
 
 
 def show(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, fps: float = 30,
-         seconds_per_step: float = 0.8, zmq_url: str | None = None):
-    """Start a live Meshcat viewer on localhost, load the scene and play the plan.
+         seconds_per_step: float = 0.8, zmq_url: str | None = None, host: str = "127.0.0.1"):
+    """Start a live Meshcat viewer, load the scene and play the plan.
 
     Meshcat's own start-up message is swallowed; nothing is printed.
 
+    Args:
+        plan, hand, obj, fps, seconds_per_step: as for `write_html`.
+        zmq_url: a running Meshcat server to draw in (default: start one, see `live_server`).
+        host: address the started server's web page listens on: 127.0.0.1 (default) is this machine
+            only; another address (e.g. 0.0.0.0) makes the viewer reachable from other machines.
+
     Returns:
         The URL to open in a browser. The Meshcat server runs in a subprocess that ends with this Python
-        process; the visualizer is kept in `viewer.LIVE_VIEWERS`.
+        process (or with `stop_live_viewers`); the visualizer is kept in `viewer.LIVE_VIEWERS`.
+
+    Raises:
+        ValueError: `host` is not an address of this machine.
+        RegraspError: the server did not start.
     """
     meshcat = _import_meshcat()
     hand, obj = plan_models(plan, hand, obj)
     frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
-    with contextlib.redirect_stdout(io.StringIO()):
-        vis = meshcat.Visualizer(zmq_url=zmq_url)
-    _build_scene(vis, plan, hand, obj, frames, fps, static_frame=0)
+    if zmq_url is None:
+        from regrasp_casadi.live_server import start_server
+
+        server = start_server(host)
+        try:
+            vis = meshcat.Visualizer(window=server.window())
+        except BaseException:
+            server.stop()
+            raise
+    else:
+        with contextlib.redirect_stdout(io.StringIO()):
+            vis = meshcat.Visualizer(zmq_url=zmq_url)
     LIVE_VIEWERS.append(vis)
+    _build_scene(vis, plan, hand, obj, frames, fps, static_frame=0)
     return vis.url()
-
-
 
 
 def stop_live_viewers() -> None:
