@@ -6,6 +6,7 @@ argument, file or key (exit 2); long work shows progress, `--help` shows default
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import importlib.util
 import io
@@ -51,24 +52,57 @@ def plan_file(hand, tmp_path) -> Path:
 
 
 # ----------------------------------------------------------------------------- item 2: listening address
-def _listening(pids: list[int]) -> list[tuple[str, int]]:
-    import psutil
+def _children(pid: int) -> list[int]:
+    """Every descendant of process `pid` (from /proc/*/stat)."""
+    parent = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        parent[int(stat.parent.name)] = int(fields[1])
+    found, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        kids = [c for c, pp in parent.items() if pp == p]
+        found += kids
+        todo += kids
+    return found
 
+
+def _address(hex_address: str) -> tuple[str, int]:
+    """(ip, port) of a /proc/net/tcp{,6} address: the ip in 32-bit little-endian words, the port in hex."""
+    import socket
+
+    ip_hex, port_hex = hex_address.split(":")
+    raw = b"".join(bytes.fromhex(ip_hex[i:i + 8])[::-1] for i in range(0, len(ip_hex), 8))
+    return socket.inet_ntop(socket.AF_INET if len(raw) == 4 else socket.AF_INET6, raw), int(port_hex, 16)
+
+
+def _listening(pids: list[int]) -> list[tuple[str, int]]:
+    """(ip, port) of every listening TCP socket held by the processes `pids` (from /proc, Linux)."""
     found = []
     for pid in pids:
+        inodes = set()
         try:
-            conns = psutil.Process(pid).net_connections(kind="inet")
-        except psutil.NoSuchProcess:
+            for fd in Path(f"/proc/{pid}/fd").iterdir():
+                with contextlib.suppress(OSError):
+                    m = re.fullmatch(r"socket:\[(\d+)\]", os.readlink(fd))
+                    if m:
+                        inodes.add(m.group(1))
+            tables = [Path(f"/proc/{pid}/net/{t}").read_text().splitlines()[1:] for t in ("tcp", "tcp6")]
+        except OSError:   # the process has ended
             continue
-        found += [(c.laddr.ip, c.laddr.port) for c in conns if c.status == psutil.CONN_LISTEN]
+        for line in (ln for table in tables for ln in table):
+            f = line.split()
+            if f[3] == "0A" and f[9] in inodes:   # state 0A: LISTEN
+                found.append(_address(f[1]))
     return found
 
 
 def test_live_viewer_listens_on_loopback_only(plan_file):
     """`regrasp view PLAN` (the live viewer): every listening socket of the CLI and of its Meshcat server
     is on 127.0.0.1, the printed URL's port among them; SIGTERM stops both (all within 60 s)."""
-    import psutil
-
     proc = subprocess.Popen([sys.executable, "-m", "regrasp_casadi.cli", "view", str(plan_file)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env())
     try:
@@ -76,7 +110,8 @@ def test_live_viewer_listens_on_loopback_only(plan_file):
         line = proc.stdout.readline()   # "viewer: http://127.0.0.1:7000/static/  (Ctrl-C to stop)"
         assert line.startswith("viewer: "), line + proc.stderr.read()
         url_port = int(re.search(r"http://127\.0\.0\.1:(\d+)/", line).group(1))
-        pids = [proc.pid, *(c.pid for c in psutil.Process(proc.pid).children(recursive=True))]
+        pids = [proc.pid, *_children(proc.pid)]
+        assert len(pids) > 1, "no Meshcat server process"
         sockets = _listening(pids)
         while url_port not in {port for _, port in sockets} and time.monotonic() < deadline:
             time.sleep(0.2)
@@ -91,7 +126,13 @@ def test_live_viewer_listens_on_loopback_only(plan_file):
             if proc.poll() is None:
                 proc.kill()
     assert proc.returncode == 0
-    assert not [p for p in pids[1:] if psutil.pid_exists(p) and psutil.Process(p).status() != "zombie"]
+    assert not [p for p in pids[1:] if Path(f"/proc/{p}").exists()], "the Meshcat server outlived the CLI"
+
+
+def test_proc_address_decoding():
+    assert _address("0100007F:1B58") == ("127.0.0.1", 7000)
+    assert _address("00000000000000000000000001000000:1B58") == ("::1", 7000)
+    assert _address("00000000:1770") == ("0.0.0.0", 6000)
 
 
 def test_live_viewer_host_is_checked_before_work(plan_file, capsys):
