@@ -191,8 +191,8 @@ def test_verify_does_not_use_smooth_distance_or_nlps(models, monkeypatch, tmp_pa
     # importing verify, loading a plan file and verifying it (models rebuilt from the plan) in a fresh
     # interpreter loads no smooth-distance, NLP, solver, planner or grasp-generation module
     path = _plan(hand, obj, _valid_specs(hand)).save(tmp_path / "plan.json")
-    code = ("import sys, regrasp_casadi.verify as v, regrasp_casadi.grasp as g; "
-            "assert v.verify(g.Plan.load(sys.argv[1])).ok; "
+    code = ("import sys, regrasp_casadi.verify as v, regrasp_casadi.plan as p; "
+            "assert v.verify(p.Plan.load(sys.argv[1])).ok; "
             "bad = [m for m in sys.argv[2:] if 'regrasp_casadi.' + m in sys.modules]; "
             "print(bad); sys.exit(1 if bad else 0)")
     forbidden = ("finger_gait", "in_grasp", "solver", "terms", "signed_distance", "planner", "grasp_gen")
