@@ -1,7 +1,7 @@
 """The `regrasp` command line: plan, verify, view, generate grasps, benchmark and demo.
 
     regrasp plan PROBLEM.yaml --method svd --out plan.json [--html replay.html] [--view] [--max-iters N]
-    regrasp verify plan.json [--all]
+    regrasp verify plan.json [--all] [--zeta MM] [--eta MM] [--surface-tol MM] [--max-slip MM] ...
     regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]]
     regrasp grasps MESH_OR_PROBLEM [--hand MODEL] [--n N] [--seed S] [--out problems/x.yaml]
     regrasp bench [ARGS ...]          (runs benchmarks/paper_objects.py)
@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import math
 import os
 import runpy
 import signal
@@ -93,11 +94,11 @@ def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool) 
     return plan
 
 
-def _verify(plan: Plan, hand=None, obj=None, show_progress: bool = False):
+def _verify(plan: Plan, hand=None, obj=None, show_progress: bool = False, **tolerances: float):
     from regrasp_casadi.verify import verify
 
     with progress_bar(f"verifying {len(plan.steps)} steps", show_progress):
-        return verify(plan, hand, obj)
+        return verify(plan, hand, obj, **tolerances)
 
 
 def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, elapsed: float,
@@ -190,9 +191,14 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return code
 
 
+_VERIFY_TOLERANCES_MM = ("zeta", "eta", "surface_tol", "max_slip", "min_clearance")
+"""`regrasp verify` flags (mm) passed to `verify(...)` as keyword arguments (m) when given."""
+
+
 def cmd_verify(args: argparse.Namespace) -> int:
     plan = _load_plan(args.plan)
-    report = _verify(plan, show_progress=progress_enabled(args))
+    tolerances = {k: getattr(args, k) * 1e-3 for k in _VERIFY_TOLERANCES_MM if getattr(args, k) is not None}
+    report = _verify(plan, show_progress=progress_enabled(args), **tolerances)
     print(report.summary(max_violations=len(report.violations) if args.all else 20))
     return EXIT_OK if report.ok else EXIT_FAILED
 
@@ -319,6 +325,45 @@ def _add_host(parser: argparse.ArgumentParser) -> None:
                              "0.0.0.0 opens it to the network")
 
 
+def _finite(text: str) -> float:
+    """argparse type: a finite number."""
+    try:
+        x = float(text)
+    except ValueError:
+        x = float("nan")
+    if not math.isfinite(x):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return x
+
+
+def _positive(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    x = _finite(text)
+    if x <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return x
+
+
+def _add_verify_arguments(sp: argparse.ArgumentParser) -> None:
+    """`regrasp verify PLAN.json [--all]` and verify's tolerances in mm (`_VERIFY_TOLERANCES_MM`)."""
+    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
+    sp.add_argument("--all", action="store_true", help="list every violation (default: the first 20)")
+    sp.description = (f"{sp.description}.\nverify judges with its own tolerances (the flags below); the "
+                      "options recorded in the plan\n(its zeta, eta, ...) are reported, never obeyed.")
+    judged = "(default: verify's own)"
+    sp.add_argument("--zeta", type=_positive, metavar="MM",
+                    help=f"largest final contact error a 'converged' plan may have, mm {judged}")
+    sp.add_argument("--eta", type=_positive, metavar="MM",
+                    help=f"gait step bound on a fingertip, mm {judged}")
+    sp.add_argument("--surface-tol", type=_positive, metavar="MM",
+                    help=f"allowed fingertip distance from the surface, mm {judged}")
+    sp.add_argument("--max-slip", type=_positive, metavar="MM",
+                    help=f"allowed contact slip during reposing, mm {judged}")
+    sp.add_argument("--min-clearance", type=_finite, metavar="MM",
+                    help=f"required clearance of the non-tip collision spheres, mm {judged}")
+    sp.set_defaults(func=cmd_verify)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The `regrasp` argument parser (one subparser per command)."""
     from regrasp_casadi import __version__
@@ -358,10 +403,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
     sp.set_defaults(func=cmd_plan)
 
-    sp = add("verify", "check a plan file with exact geometry and print the report")
-    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
-    sp.add_argument("--all", action="store_true", help="list every violation (default: the first 20)")
-    sp.set_defaults(func=cmd_verify)
+    _add_verify_arguments(add("verify", "check a plan file with exact geometry and print the report"))
 
     sp = add("view", "replay a plan: live viewer on localhost, or a self-contained HTML file")
     sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")

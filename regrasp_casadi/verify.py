@@ -2,8 +2,13 @@
 
 `verify` judges a plan with the exact object mesh (`ObjectModel.closest_points`, distances computed in
 millimetres) and the hand's collision spheres, never with the smooth signed distance or the NLP modules.
-At every step it checks:
+It judges with its own tolerances (the keyword arguments of `verify`, defaults below), never with the
+ζ and η the plan says it was planned with: those are only reported (`metrics["plan_options"]`).
 
+The checks are data: `CHECK_TABLE` lists them by name, one function each, run on every step in table
+order. At every step:
+
+* structure: the plan's form (shapes, fingers, kinds); a malformed plan stops there;
 * joint limits (within `limit_tol`);
 * every fingertip on the surface: |d(tip centre) − tip radius| ≤ `surface_tol`;
 * no other contact or penetration: every non-tip collision sphere (palm included) has
@@ -15,47 +20,38 @@ At every step it checks:
 * repose / final steps: each finger's contact on the object moves at most `max_slip` (slip);
 * the plan's claims: a "converged" plan's last step has max contact error ≤ `zeta`.
 
+A new check is one function `check_x(ctx, step_index, step) -> list[Finding]` and one row of
+`CHECK_TABLE`.
+
     >>> report = verify(Plan.load("plan.json"))
     >>> print(report.summary()); assert report.ok
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import sys
 import types
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+from numpy.typing import NDArray
 
-from regrasp_casadi.problem import plan_models
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
-    from regrasp_casadi.plan import Plan
+    from regrasp_casadi.plan import Plan, PlanStep
 
-__all__ = ["Violation", "VerifyReport", "verify", "CHECKS"]
+__all__ = ["Violation", "VerifyReport", "verify", "CHECKS", "CHECK_TABLE", "Check", "Finding", "Tolerances",
+           "VerifyContext"]
 
 log = logging.getLogger(__name__)
-
-CHECKS = (
-    "structure",  # malformed plan (shapes, fingers, kinds)
-    "joint_limit",
-    "tip_surface",
-    "clearance",
-    "contact_consistency",
-    "contact_error",
-    "gait_other_joints",
-    "gait_object_moved",
-    "gait_step",
-    "slip",
-    "converged_claim",
-)
-"""Names used in `Violation.check`."""
 
 EXACT_TOL = 1e-9
 """Tolerance for "unchanged" (joints of other fingers and object pose during a gait)."""
@@ -64,10 +60,10 @@ STEP_TOL = 1e-6
 """Slack on the gait step bound `eta`, m."""
 
 DEFAULT_ETA = 0.01
-"""Gait step bound used when the plan's options do not say (DESIGN.md: 1 cm), m."""
+"""Gait step bound verify judges by unless told otherwise (DESIGN.md: 1 cm), m."""
 
 DEFAULT_ZETA = 0.006
-"""Convergence threshold used when the plan's options do not say (DESIGN.md: 6 mm), m."""
+"""Convergence threshold verify judges by unless told otherwise (DESIGN.md: 6 mm), m."""
 
 
 @dataclass(frozen=True)
@@ -95,14 +91,15 @@ class VerifyReport:
     ok: bool
     """True iff `violations` is empty."""
     violations: tuple[Violation, ...]
-    """Every failed check, in step order."""
+    """Every failed check, in step order (within a step, in `CHECK_TABLE` order)."""
     metrics: dict[str, Any]
     """Figures of the plan: "min_clearance" (m) and "min_clearance_at" ({"step", "who"}),
     "max_surface_error", "max_gait_step", "max_slip", "final_avg_error", "final_max_error" (m, exact),
     "n_steps", and the stability metric (not a check): "min_holding_quality" (least Ferrari–Canny margin
     of the fingers holding the object during a gait, see `stability.holding_quality`; NaN without
     gaits), "min_holding_quality_at" and "unstable_gaits" (gaits whose holding fingers are not in force
-    closure)."""
+    closure). "tolerances": the bounds verify judged by (`Tolerances` as a dict, m / rad);
+    "plan_options": the options the plan says it was planned with (reported, never obeyed)."""
 
     def summary(self, max_violations: int = 20) -> str:
         """Readable multi-line text: verdict, metrics in mm, the first `max_violations` violations."""
@@ -118,8 +115,13 @@ class VerifyReport:
             f"  final contact error avg {_mm(m.get('final_avg_error'))} mm, "
             f"max {_mm(m.get('final_max_error'))} mm",
             f"  stability (metric): {m.get('unstable_gaits', 0)} gaits whose other fingers are not in force "
-            f"closure (μ = 0.5); least margin ε {m.get('min_holding_quality', float('nan')):.4f}",
+            f"closure (μ = {(m.get('tolerances') or {}).get('mu', 0.5):g}); least margin ε "
+            f"{m.get('min_holding_quality', float('nan')):.4f}",
         ]
+        tol, opts = m.get("tolerances") or {}, m.get("plan_options") or {}
+        if tol:
+            lines.append(f"  judged with zeta {_mm(tol.get('zeta'))} mm, eta {_mm(tol.get('eta'))} mm "
+                         f"(the plan's own: zeta {_mm(opts.get('zeta'))} mm, eta {_mm(opts.get('eta'))} mm)")
         for v in self.violations[:max_violations]:
             lines.append(f"  step {v.step}: {v.check} [{v.who}]: {v.message}")
         if len(self.violations) > max_violations:
@@ -136,9 +138,304 @@ class VerifyReport:
 
 
 def _mm(x: Any) -> str:
-    return "n/a" if x is None or not np.isfinite(x) else f"{x * 1e3:.3f}"
+    if isinstance(x, bool) or not isinstance(x, (int, float, np.floating, np.integer)):
+        return "n/a"
+    return "n/a" if not np.isfinite(x) else f"{x * 1e3:.3f}"
 
 
+# ---------------------------------------------------------------------------------------------- context
+@dataclass(frozen=True)
+class Tolerances:
+    """The bounds `verify` judges by: its own, never read from the plan (see `verify` for each)."""
+
+    surface_tol: float = 0.5e-3
+    """Allowed |exact distance of a tip centre − tip radius|, m."""
+    min_clearance: float = 0.0
+    """Required exact distance − radius of every non-tip collision sphere, m."""
+    limit_tol: float = 1e-6
+    """Slack on joint limits, rad."""
+    eta: float = DEFAULT_ETA
+    """Gait step bound on the tip centre, m."""
+    zeta: float = DEFAULT_ZETA
+    """Largest contact error a "converged" plan may end with, m."""
+    max_slip: float = 1e-3
+    """Allowed motion of a contact on the object during repose / final steps, m."""
+    contact_consistency_tol: float = 0.5e-3
+    """Allowed gap between a stored contact and the exact closest point of its tip (and between stored
+    and recomputed contact errors), m."""
+    mu: float = 0.5
+    """Friction coefficient of the stability metric (not a check)."""
+
+
+@dataclass(frozen=True)
+class ExactGeometry:
+    """The exact geometry of every step, from one exact query (S = steps, m = fingers, s = non-tip
+    collision spheres)."""
+
+    p_palm_tips: NDArray
+    """(S, m, 3) fingertip centres, palm frame, m."""
+    p_object_closest: NDArray
+    """(S, m, 3) exact closest points of the tip centres on the mesh (the true contacts), object frame, m."""
+    tip_gap: NDArray
+    """(S, m) exact distance of each tip centre − tip radius, m (> 0 above the surface)."""
+    clearance: NDArray
+    """(S, s) exact distance of each non-tip sphere centre − its radius, m (< 0 penetration)."""
+
+
+class VerifyContext:
+    """What every check reads: the plan, its models, verify's tolerances, the exact geometry of every
+    step (computed once, on first use) and the metrics the checks fill in."""
+
+    def __init__(self, plan: Plan, hand: Hand, obj: ObjectModel, tol: Tolerances):
+        self.plan, self.hand, self.obj, self.tol = plan, hand, obj, tol
+        self.fingers: tuple[str, ...] = tuple(hand.fingers)
+        self.sphere_labels: list[str] = list(hand.sphere_labels())
+        self.metrics: dict[str, Any] = {
+            "min_clearance": float("inf"), "min_clearance_at": None, "max_surface_error": 0.0,
+            "max_gait_step": 0.0, "max_slip": 0.0, "final_avg_error": float("nan"),
+            "final_max_error": float("nan"), "n_steps": len(plan.steps),
+            "min_holding_quality": float("inf"), "min_holding_quality_at": None, "unstable_gaits": 0,
+            "tolerances": asdict(tol), "plan_options": dict(plan.options),
+        }
+
+    @functools.cached_property
+    def exact(self) -> ExactGeometry:
+        """All tip centres and non-tip spheres of all steps, in the object frame, in one exact query."""
+        hand, steps, m = self.hand, self.plan.steps, len(self.fingers)
+        radii = np.asarray(hand.sphere_radii(), dtype=float)
+        tips = np.stack([np.asarray(hand.tip_positions(s.q), float).reshape(m, 3) for s in steps])
+        pts = []
+        for s, p_palm_tips in zip(steps, tips, strict=True):
+            spheres = np.asarray(hand.sphere_centers(s.q), float).reshape(-1, 3)
+            pts.append(transform_points(inv_T(s.T_palm_object), np.vstack([p_palm_tips, spheres])))
+        closest, sd = self.obj.closest_points(np.vstack(pts))
+        closest = np.asarray(closest, float).reshape(len(steps), m + len(radii), 3)
+        sd = np.asarray(sd, float).reshape(len(steps), m + len(radii))
+        return ExactGeometry(p_palm_tips=tips, p_object_closest=closest[:, :m],
+                             tip_gap=sd[:, :m] - float(hand.tip_radius), clearance=sd[:, m:] - radii)
+
+    @functools.cached_property
+    def torque_reference(self) -> tuple[NDArray, float]:
+        """(centre (3,) object frame m, length m) of the stability metric (`stability.torque_reference`)."""
+        return torque_reference(self.obj.mesh)
+
+
+class Finding(NamedTuple):
+    """What a check reports; `verify` adds the step index and the check's name to make a `Violation`."""
+
+    who: str
+    amount: float
+    limit: float
+    message: str
+
+
+StepCheck = Callable[[VerifyContext, int, "PlanStep"], list[Finding]]
+
+
+@dataclass(frozen=True)
+class Check:
+    """One row of `CHECK_TABLE`."""
+
+    name: str
+    """The name in `Violation.check`."""
+    run: StepCheck
+    """`run(ctx, step_index, step) -> findings` (empty when the step passes or the check does not apply)."""
+    needs_geometry: bool = True
+    """False for the checks of the plan's form, run on every step before any geometry: a finding of one
+    stops `verify` there (the geometric checks would read malformed arrays)."""
+
+
+# ---------------------------------------------------------------------------------------------- checks
+def check_structure(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """Shapes of q, contacts and errors, the step kind (only step 0 is 'initial'), the gait's finger."""
+    m, n = len(ctx.fingers), ctx.hand.n_joints
+    bad = []
+    if step.q.shape != (n,):
+        bad.append(f"q has shape {step.q.shape}, expected ({n},)")
+    if step.contacts_object.shape != (m, 3) or step.contact_error.shape != (m,):
+        bad.append(f"contacts/errors have shapes {step.contacts_object.shape}/{step.contact_error.shape}")
+    if step.kind not in ("initial", "gait", "repose", "final") or (k == 0) != (step.kind == "initial"):
+        bad.append(f"kind {step.kind!r} at step {k} (only step 0 is 'initial')")
+    if step.kind == "gait" and step.finger not in ctx.fingers:
+        bad.append(f"gait of unknown finger {step.finger!r}")
+    return [Finding("", 0.0, 0.0, "; ".join(bad))] if bad else []
+
+
+def check_joint_limits(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """Every joint within [q_lower − limit_tol, q_upper + limit_tol], rad."""
+    hand, tol = ctx.hand, ctx.tol.limit_tol
+    lower, upper = np.asarray(hand.q_lower, float), np.asarray(hand.q_upper, float)
+    q = step.q
+    out = []
+    for i in np.flatnonzero((q < lower - tol) | (q > upper + tol)):
+        over = max(lower[i] - q[i], q[i] - upper[i])
+        out.append(Finding(hand.joint_names[i], over, tol,
+                           f"{hand.joint_names[i]} = {q[i]:.6g} rad outside [{lower[i]:.6g}, {upper[i]:.6g}] "
+                           f"by {over:.3g} rad"))
+    return out
+
+
+def check_tip_surface(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """Every fingertip on the surface: |exact distance − tip radius| ≤ surface_tol (metric
+    "max_surface_error")."""
+    gap, tol = ctx.exact.tip_gap[k], ctx.tol.surface_tol
+    ctx.metrics["max_surface_error"] = max(ctx.metrics["max_surface_error"], float(np.max(np.abs(gap))))
+    out = []
+    for f, g in zip(ctx.fingers, gap, strict=True):
+        if abs(g) > tol:
+            where = "above" if g > 0 else "inside"
+            out.append(Finding(f, abs(g), tol, f"{f} tip is {abs(g) * 1e3:.2f} mm {where} the surface "
+                                               f"(tolerance {tol * 1e3:.2f} mm)"))
+    return out
+
+
+def check_clearance(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """Every non-tip collision sphere clear of the object by min_clearance (metrics "min_clearance",
+    "min_clearance_at")."""
+    clear, limit, labels = ctx.exact.clearance[k], ctx.tol.min_clearance, ctx.sphere_labels
+    if not clear.size:
+        return []
+    j = int(np.argmin(clear))
+    if clear[j] < ctx.metrics["min_clearance"]:
+        ctx.metrics["min_clearance"] = float(clear[j])
+        ctx.metrics["min_clearance_at"] = {"step": k, "who": labels[j]}
+    out = []
+    for j in np.flatnonzero(clear < limit):
+        what = "penetrates the object by" if clear[j] < 0 else "has only"
+        out.append(Finding(labels[j], clear[j], limit,
+                           f"sphere {labels[j]} {what} {abs(clear[j]) * 1e3:.2f} mm"
+                           + ("" if clear[j] < 0 else f" clearance (< {limit * 1e3:.2f} mm)")))
+    return out
+
+
+def check_contact_consistency(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """The stored contacts are the exact closest points of the tip centres."""
+    tol = ctx.tol.contact_consistency_tol
+    dev = np.linalg.norm(step.contacts_object - ctx.exact.p_object_closest[k], axis=1)
+    return [Finding(f, d, tol,
+                    f"stored {f} contact is {d * 1e3:.2f} mm from the exact closest point of its tip")
+            for f, d in zip(ctx.fingers, dev, strict=True) if d > tol]
+
+
+def check_contact_error(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """The stored contact errors are the distances of the exact contacts to the goal contacts."""
+    tol = ctx.tol.contact_consistency_tol
+    err = np.linalg.norm(ctx.exact.p_object_closest[k] - ctx.plan.goal_contacts_object, axis=1)
+    return [Finding(f, abs(e_stored - e), tol,
+                    f"stored {f} contact error {e_stored * 1e3:.2f} mm, recomputed {e * 1e3:.2f} mm")
+            for f, e_stored, e in zip(ctx.fingers, step.contact_error, err, strict=True)
+            if abs(e_stored - e) > tol]
+
+
+def check_gait_other_joints(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """A gait moves only the joints of its finger."""
+    if k == 0 or step.kind != "gait":
+        return []
+    hand, prev = ctx.hand, ctx.plan.steps[k - 1]
+    moving = set(int(i) for i in np.asarray(hand.finger_joints[step.finger]).ravel())
+    return [Finding(hand.joint_names[i], abs(step.q[i] - prev.q[i]), EXACT_TOL,
+                    f"gait of {step.finger} moved joint {hand.joint_names[i]} "
+                    f"by {step.q[i] - prev.q[i]:.3g} rad")
+            for i in range(hand.n_joints) if i not in moving and abs(step.q[i] - prev.q[i]) > EXACT_TOL]
+
+
+def check_gait_object_moved(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """The object does not move during a gait."""
+    if k == 0 or step.kind != "gait":
+        return []
+    dT = float(np.max(np.abs(step.T_palm_object - ctx.plan.steps[k - 1].T_palm_object)))
+    if dT <= EXACT_TOL:
+        return []
+    return [Finding(step.finger, dT, EXACT_TOL,
+                    f"object pose changed during the gait of {step.finger} (max |ΔT| = {dT:.3g})")]
+
+
+def check_gait_step(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """The moving tip centre travels at most eta in one gait (metric "max_gait_step")."""
+    if k == 0 or step.kind != "gait":
+        return []
+    fi, eta = ctx.fingers.index(step.finger), ctx.tol.eta
+    tips = ctx.exact.p_palm_tips
+    step_len = float(np.linalg.norm(tips[k][fi] - tips[k - 1][fi]))
+    ctx.metrics["max_gait_step"] = max(ctx.metrics["max_gait_step"], step_len)
+    if step_len <= eta + STEP_TOL:
+        return []
+    return [Finding(step.finger, step_len, eta,
+                    f"{step.finger} tip moved {step_len * 1e3:.2f} mm in one gait (eta {eta * 1e3:.2f} mm)")]
+
+
+def check_slip(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """Repose / final steps: every contact stays where it is on the object, within max_slip (metric
+    "max_slip")."""
+    if k == 0 or step.kind == "gait":
+        return []
+    closest, tol = ctx.exact.p_object_closest, ctx.tol.max_slip
+    slip = np.linalg.norm(closest[k] - closest[k - 1], axis=1)
+    ctx.metrics["max_slip"] = max(ctx.metrics["max_slip"], float(np.max(slip)))
+    return [Finding(f, sl, tol, f"{f} contact slipped {sl * 1e3:.2f} mm on the object during {step.kind}")
+            for f, sl in zip(ctx.fingers, slip, strict=True) if sl > tol]
+
+
+def check_converged_claim(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
+    """A plan that says "converged" ends with a largest stored contact error ≤ zeta (verify's zeta,
+    not the plan's)."""
+    if k != len(ctx.plan.steps) - 1 or ctx.plan.status != "converged":
+        return []
+    claimed, zeta = float(np.max(step.contact_error)), ctx.tol.zeta
+    if claimed <= zeta:
+        return []
+    return [Finding("", claimed, zeta, f"plan says converged but its last max contact error is "
+                                       f"{claimed * 1e3:.2f} mm > zeta {zeta * 1e3:.2f} mm")]
+
+
+CHECK_TABLE: tuple[Check, ...] = (
+    Check("structure", check_structure, needs_geometry=False),  # malformed plan (shapes, fingers, kinds)
+    Check("joint_limit", check_joint_limits),
+    Check("tip_surface", check_tip_surface),
+    Check("clearance", check_clearance),
+    Check("contact_consistency", check_contact_consistency),
+    Check("contact_error", check_contact_error),
+    Check("gait_other_joints", check_gait_other_joints),
+    Check("gait_object_moved", check_gait_object_moved),
+    Check("gait_step", check_gait_step),
+    Check("slip", check_slip),
+    Check("converged_claim", check_converged_claim),
+)
+"""Every check, in the order it runs on each step."""
+
+CHECKS = tuple(c.name for c in CHECK_TABLE)
+"""Names used in `Violation.check`."""
+
+
+# ---------------------------------------------------------------------------------------------- metrics
+def record_holding_quality(ctx: VerifyContext, k: int, step: PlanStep) -> None:
+    """Stability (a metric, not a check: the paper's method does not guarantee it): force-closure margin
+    of the other fingers, which hold the object while the gait's finger is lifted (at step k − 1)."""
+    if k == 0 or step.kind != "gait":
+        return
+    prev, exact, metrics = ctx.plan.steps[k - 1], ctx.exact, ctx.metrics
+    com, length = ctx.torque_reference
+    eps = holding_quality(exact.p_object_closest[k - 1],
+                          transform_points(inv_T(prev.T_palm_object), exact.p_palm_tips[k - 1]),
+                          ctx.fingers.index(step.finger), com, length, ctx.tol.mu)
+    if eps < metrics["min_holding_quality"]:
+        metrics["min_holding_quality"] = eps
+        metrics["min_holding_quality_at"] = {"step": k, "who": step.finger}
+    metrics["unstable_gaits"] += int(eps <= 0.0)
+
+
+def _record_final_metrics(ctx: VerifyContext) -> None:
+    """Final contact errors (exact); NaN for the minima that saw no value (no gait, no sphere)."""
+    metrics = ctx.metrics
+    err = np.linalg.norm(ctx.exact.p_object_closest[-1] - ctx.plan.goal_contacts_object, axis=1)
+    metrics["final_avg_error"] = float(np.mean(err))
+    metrics["final_max_error"] = float(np.max(err))
+    for key in ("min_holding_quality", "min_clearance"):
+        if not np.isfinite(metrics[key]):
+            metrics[key] = float("nan")
+
+
+# ---------------------------------------------------------------------------------------------- verify
 def verify(
     plan: Plan,
     hand: Hand | None = None,
@@ -147,12 +444,16 @@ def verify(
     surface_tol: float = 0.5e-3,
     min_clearance: float = 0.0,
     limit_tol: float = 1e-6,
-    eta: float | None = None,
+    eta: float = DEFAULT_ETA,
+    zeta: float = DEFAULT_ZETA,
     max_slip: float = 1e-3,
     contact_consistency_tol: float = 0.5e-3,
     mu: float = 0.5,
 ) -> VerifyReport:
-    """Check a plan with exact geometry; never raises for a bad plan, reports it.
+    """Check a plan with exact geometry and verify's own tolerances; never raises for a bad plan, reports it.
+
+    The plan's own options (its ζ, η, ...) are reported in `metrics["plan_options"]` and never used: a
+    plan cannot loosen the bounds it is judged by.
 
     Args:
         plan: the plan.
@@ -161,166 +462,57 @@ def verify(
         surface_tol: allowed |exact distance of a tip centre − tip radius|, m.
         min_clearance: required exact distance − radius of every non-tip collision sphere, m.
         limit_tol: slack on joint limits, rad.
-        mu: friction coefficient of the stability metric (force closure of the holding fingers).
-        eta: gait step bound on the tip centre, m (default `plan.options["eta"]`, else 0.01).
+        eta: gait step bound on the tip centre, m.
+        zeta: largest contact error a plan that says "converged" may end with, m.
         max_slip: allowed motion of a contact on the object during repose / final steps, m.
         contact_consistency_tol: allowed distance between a stored contact and the exact closest
             point of its tip centre (and between stored and recomputed contact errors), m.
+        mu: friction coefficient of the stability metric (force closure of the holding fingers).
 
     Returns:
         VerifyReport with ok, violations and metrics.
     """
+    from regrasp_casadi.problem import plan_models  # lazy: importing verify loads no model code
+
     hand, obj = plan_models(plan, hand, obj)
-    eta = float(plan.options.get("eta", DEFAULT_ETA) if eta is None else eta)
-    zeta = float(plan.options.get("zeta", DEFAULT_ZETA))
-    V: list[Violation] = []
+    tol = Tolerances(surface_tol=float(surface_tol), min_clearance=float(min_clearance),
+                     limit_tol=float(limit_tol), eta=float(eta), zeta=float(zeta), max_slip=float(max_slip),
+                     contact_consistency_tol=float(contact_consistency_tol), mu=float(mu))
+    ctx = VerifyContext(plan, hand, obj, tol)
+    problem = _plan_form_problem(ctx)
+    if problem:
+        return _report([Violation(-1, "structure", "", 0.0, 0.0, problem)], ctx.metrics)
+    violations = _run_checks(ctx, [c for c in CHECK_TABLE if not c.needs_geometry])
+    if violations:
+        return _report(violations, ctx.metrics)
+    violations = _run_checks(ctx, [c for c in CHECK_TABLE if c.needs_geometry], (record_holding_quality,))
+    _record_final_metrics(ctx)
+    return _report(violations, ctx.metrics)
 
-    def add(step: int, check: str, who: str, amount: float, limit: float, message: str) -> None:
-        V.append(Violation(int(step), check, str(who), float(amount), float(limit), message))
 
-    fingers = tuple(hand.fingers)
-    m, n = len(fingers), hand.n_joints
-    metrics: dict[str, Any] = {
-        "min_clearance": float("inf"), "min_clearance_at": None, "max_surface_error": 0.0,
-        "max_gait_step": 0.0, "max_slip": 0.0, "final_avg_error": float("nan"),
-        "final_max_error": float("nan"), "n_steps": len(plan.steps),
-        "min_holding_quality": float("inf"), "min_holding_quality_at": None, "unstable_gaits": 0,
-    }
-    com, length = torque_reference(obj.mesh)
+def _plan_form_problem(ctx: VerifyContext) -> str:
+    """What makes the plan as a whole unreadable (fingers, goal shape, no steps), or ""."""
+    plan, fingers = ctx.plan, ctx.fingers
     if tuple(plan.fingers) != fingers:
-        add(-1, "structure", "", 0, 0, f"plan fingers {plan.fingers} differ from the hand's {fingers}")
-        return _report(V, metrics)
-    if plan.goal_contacts_object.shape != (m, 3):
-        add(-1, "structure", "", 0, 0, f"goal_contacts_object has shape {plan.goal_contacts_object.shape}")
-        return _report(V, metrics)
+        return f"plan fingers {plan.fingers} differ from the hand's {fingers}"
+    if plan.goal_contacts_object.shape != (len(fingers), 3):
+        return f"goal_contacts_object has shape {plan.goal_contacts_object.shape}"
     if not plan.steps:
-        add(-1, "structure", "", 0, 0, "plan has no steps")
-        return _report(V, metrics)
-    for k, s in enumerate(plan.steps):
-        bad = []
-        if s.q.shape != (n,):
-            bad.append(f"q has shape {s.q.shape}, expected ({n},)")
-        if s.contacts_object.shape != (m, 3) or s.contact_error.shape != (m,):
-            bad.append(f"contacts/errors have shapes {s.contacts_object.shape}/{s.contact_error.shape}")
-        if s.kind not in ("initial", "gait", "repose", "final") or (k == 0) != (s.kind == "initial"):
-            bad.append(f"kind {s.kind!r} at step {k} (only step 0 is 'initial')")
-        if s.kind == "gait" and s.finger not in fingers:
-            bad.append(f"gait of unknown finger {s.finger!r}")
-        if bad:
-            add(k, "structure", "", 0, 0, "; ".join(bad))
-    if V:
-        return _report(V, metrics)
+        return "plan has no steps"
+    return ""
 
-    # ---- all geometry of all steps in one exact query: tip centres then non-tip spheres, object frame
-    radii = np.asarray(hand.sphere_radii(), dtype=float)
-    labels = list(hand.sphere_labels())
-    r_tip = float(hand.tip_radius)
-    tips_palm = [np.asarray(hand.tip_positions(s.q), float).reshape(m, 3) for s in plan.steps]
-    pts = []
-    for s, tp in zip(plan.steps, tips_palm, strict=True):
-        T_object_palm = inv_T(s.T_palm_object)
-        spheres = np.asarray(hand.sphere_centers(s.q), float).reshape(-1, 3)
-        pts.append(transform_points(T_object_palm, np.vstack([tp, spheres])))
-    k_pts = m + len(radii)
-    closest_all, sd_all = obj.closest_points(np.vstack(pts))
-    closest_all = np.asarray(closest_all, float).reshape(len(plan.steps), k_pts, 3)
-    sd_all = np.asarray(sd_all, float).reshape(len(plan.steps), k_pts)
 
-    lower, upper = np.asarray(hand.q_lower, float), np.asarray(hand.q_upper, float)
-    goal = plan.goal_contacts_object
-    for k, s in enumerate(plan.steps):
-        # joint limits
-        for i in np.flatnonzero((s.q < lower - limit_tol) | (s.q > upper + limit_tol)):
-            over = max(lower[i] - s.q[i], s.q[i] - upper[i])
-            add(k, "joint_limit", hand.joint_names[i], over, limit_tol,
-                f"{hand.joint_names[i]} = {s.q[i]:.6g} rad outside [{lower[i]:.6g}, {upper[i]:.6g}] "
-                f"by {over:.3g} rad")
-        # fingertips on the surface
-        gap = sd_all[k, :m] - r_tip
-        metrics["max_surface_error"] = max(metrics["max_surface_error"], float(np.max(np.abs(gap))))
-        for f, g in zip(fingers, gap, strict=True):
-            if abs(g) > surface_tol:
-                where = "above" if g > 0 else "inside"
-                add(k, "tip_surface", f, abs(g), surface_tol,
-                    f"{f} tip is {abs(g) * 1e3:.2f} mm {where} the surface "
-                    f"(tolerance {surface_tol * 1e3:.2f} mm)")
-        # every other sphere clear of the object
-        clear = sd_all[k, m:] - radii
-        if clear.size:
-            j = int(np.argmin(clear))
-            if clear[j] < metrics["min_clearance"]:
-                metrics["min_clearance"] = float(clear[j])
-                metrics["min_clearance_at"] = {"step": k, "who": labels[j]}
-            for j in np.flatnonzero(clear < min_clearance):
-                what = "penetrates the object by" if clear[j] < 0 else "has only"
-                add(k, "clearance", labels[j], clear[j], min_clearance,
-                    f"sphere {labels[j]} {what} {abs(clear[j]) * 1e3:.2f} mm"
-                    + ("" if clear[j] < 0 else f" clearance (< {min_clearance * 1e3:.2f} mm)"))
-        # stored contacts vs exact closest points, stored errors vs recomputed
-        actual = closest_all[k, :m]
-        dev = np.linalg.norm(s.contacts_object - actual, axis=1)
-        for f, d in zip(fingers, dev, strict=True):
-            if d > contact_consistency_tol:
-                add(k, "contact_consistency", f, d, contact_consistency_tol,
-                    f"stored {f} contact is {d * 1e3:.2f} mm from the exact closest point of its tip")
-        err = np.linalg.norm(actual - goal, axis=1)
-        for f, e_stored, e in zip(fingers, s.contact_error, err, strict=True):
-            if abs(e_stored - e) > contact_consistency_tol:
-                add(k, "contact_error", f, abs(e_stored - e), contact_consistency_tol,
-                    f"stored {f} contact error {e_stored * 1e3:.2f} mm, recomputed {e * 1e3:.2f} mm")
-        if k == 0:
-            continue
-        prev = plan.steps[k - 1]
-        if s.kind == "gait":
-            moving = set(int(i) for i in np.asarray(hand.finger_joints[s.finger]).ravel())
-            for i in range(n):
-                if i not in moving and abs(s.q[i] - prev.q[i]) > EXACT_TOL:
-                    add(k, "gait_other_joints", hand.joint_names[i], abs(s.q[i] - prev.q[i]), EXACT_TOL,
-                        f"gait of {s.finger} moved joint {hand.joint_names[i]} "
-                        f"by {s.q[i] - prev.q[i]:.3g} rad")
-            dT = float(np.max(np.abs(s.T_palm_object - prev.T_palm_object)))
-            if dT > EXACT_TOL:
-                add(k, "gait_object_moved", s.finger, dT, EXACT_TOL,
-                    f"object pose changed during the gait of {s.finger} (max |ΔT| = {dT:.3g})")
-            fi = fingers.index(s.finger)
-            # stability (a metric, not a check: the paper's method does not guarantee it): force-closure
-            # margin of the other fingers, which hold the object while this one is lifted
-            T_object_palm = inv_T(prev.T_palm_object)
-            eps = holding_quality(closest_all[k - 1, :m], transform_points(T_object_palm, tips_palm[k - 1]),
-                                  fi, com, length, mu)
-            if eps < metrics["min_holding_quality"]:
-                metrics["min_holding_quality"] = eps
-                metrics["min_holding_quality_at"] = {"step": k, "who": s.finger}
-            metrics["unstable_gaits"] += int(eps <= 0.0)
-            step_len = float(np.linalg.norm(tips_palm[k][fi] - tips_palm[k - 1][fi]))
-            metrics["max_gait_step"] = max(metrics["max_gait_step"], step_len)
-            if step_len > eta + STEP_TOL:
-                add(k, "gait_step", s.finger, step_len, eta,
-                    f"{s.finger} tip moved {step_len * 1e3:.2f} mm in one gait (eta {eta * 1e3:.2f} mm)")
-        else:  # repose / final: contacts must stay where they are on the object
-            slip = np.linalg.norm(actual - closest_all[k - 1, :m], axis=1)
-            metrics["max_slip"] = max(metrics["max_slip"], float(np.max(slip)))
-            for f, sl in zip(fingers, slip, strict=True):
-                if sl > max_slip:
-                    add(k, "slip", f, sl, max_slip,
-                        f"{f} contact slipped {sl * 1e3:.2f} mm on the object during {s.kind}")
-
-    # ---- final figures and the plan's claims
-    err = np.linalg.norm(closest_all[-1, :m] - goal, axis=1)
-    metrics["final_avg_error"] = float(np.mean(err))
-    metrics["final_max_error"] = float(np.max(err))
-    last = len(plan.steps) - 1
-    if plan.status == "converged":
-        claimed = float(np.max(plan.steps[-1].contact_error))
-        if claimed > zeta:
-            add(last, "converged_claim", "", claimed, zeta,
-                f"plan says converged but its last max contact error is {claimed * 1e3:.2f} mm "
-                f"> zeta {zeta * 1e3:.2f} mm")
-    if not np.isfinite(metrics["min_holding_quality"]):
-        metrics["min_holding_quality"] = float("nan")  # no gait
-    if not np.isfinite(metrics["min_clearance"]):
-        metrics["min_clearance"] = float("nan")
-    return _report(V, metrics)
+def _run_checks(ctx: VerifyContext, checks: list[Check],
+                metrics: tuple[Callable[[VerifyContext, int, PlanStep], None], ...] = ()) -> list[Violation]:
+    """Run `checks` (then the metric recorders `metrics`) on every step, in step order."""
+    out: list[Violation] = []
+    for k, step in enumerate(ctx.plan.steps):
+        for check in checks:
+            out.extend(Violation(k, check.name, str(f.who), float(f.amount), float(f.limit), f.message)
+                       for f in check.run(ctx, k, step))
+        for record in metrics:
+            record(ctx, k, step)
+    return out
 
 
 def _report(V: list[Violation], metrics: dict[str, Any]) -> VerifyReport:

@@ -21,16 +21,14 @@ meshcat nor starts a server). The scene, drawn in the palm frame:
 Only transforms and visibility are animated; geometry is sent once. The static HTML's static scene
 is the final step (what a page shows if it does not play the animation); the live viewer's is the
 first. The static HTML is produced without a Meshcat server: the commands are recorded in-process and
-assembled the way Meshcat's own `static_html()` does, with the animation last.
+assembled the way Meshcat's own `static_html()` does, with the animation last (`meshcat_html`).
 """
 
 from __future__ import annotations
 
-import base64
 import contextlib
 import io
 import logging
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -40,6 +38,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
 from regrasp_casadi.files import atomic_write_text
+from regrasp_casadi.meshcat_html import RecordingWindow, import_meshcat, text_and_plane_classes
 from regrasp_casadi.problem import plan_models
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -296,120 +295,6 @@ def step_label(plan: Plan, i: int) -> str:
 # Meshcat front ends (meshcat imported lazily).
 
 
-class _RecordingWindow:
-    """Stands in for meshcat's ViewerWindow: keeps the scene tree in-process and renders static HTML the
-    way meshcat's server does for `get_scene` (no server, no port)."""
-
-    def __init__(self) -> None:
-        _import_meshcat()
-        from meshcat.servers.tree import SceneTree
-
-        self.tree = SceneTree()
-        self.web_url = ""
-
-    def send(self, command) -> None:
-        import umsgpack
-        from meshcat.servers.tree import find_node
-
-        data = command.lower()
-        packed = umsgpack.packb(data, force_float_precision="single")
-        path = [p for p in data["path"].split("/") if p]
-        node = find_node(self.tree, path)
-        kind = data["type"]
-        if kind == "set_object":
-            node.object, node.properties = packed, []
-        elif kind == "set_transform":
-            node.transform = packed
-        elif kind == "set_property":
-            node.properties.append(packed)
-        elif kind == "set_animation":
-            node.animation = packed
-        else:  # pragma: no cover - not used by this module
-            raise ValueError(f"unsupported meshcat command {kind}")
-
-    def get_scene(self) -> str:
-        from meshcat.servers.tree import walk
-
-        def cmd(data: bytes) -> str:
-            return ('\nfetch("data:application/octet-binary;base64,{}")\n.then(res => res.arrayBuffer())\n'
-                    '.then(buffer => viewer.handle_command_bytearray(new Uint8Array(buffer)));\n'
-                    ).format(base64.b64encode(data).decode("utf-8"))
-
-        # Unlike meshcat's server, the animation goes LAST: three.js records each animated property's
-        # value when the animation starts and afterwards writes a property only when its animated value
-        # changes, so a static value set after the start would stay on screen until then.
-        commands, animations = [], []
-        for node in walk(self.tree):
-            if node.object is not None:
-                commands.append(cmd(node.object))
-            commands.extend(cmd(p) for p in node.properties)
-            if node.transform is not None:
-                commands.append(cmd(node.transform))
-            if node.animation is not None:
-                animations.append(cmd(node.animation))
-        commands += animations
-        import meshcat
-
-        js = (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text(encoding="utf-8")
-        return _HTML_TEMPLATE.format(mainminjs=js, commands="".join(commands))
-
-
-_HTML_TEMPLATE = """<!DOCTYPE html>
-<html>
-<head> <meta charset=utf-8> <title>MeshCat</title> </head>
-<body>
-<div id="meshcat-pane"></div>
-<script>
-{mainminjs}
-</script>
-<script>
-var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-{commands}
-</script>
-<style> body {{margin: 0; }} #meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }} </style>
-<script id="embedded-json"></script>
-</body>
-</html>
-"""
-
-
-def _import_meshcat():
-    """Import meshcat (lazily), silencing the deprecation warning its zmq server module raises."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        import meshcat
-        import meshcat.animation  # noqa: F401
-        import meshcat.geometry  # noqa: F401
-        import meshcat.servers.tree  # noqa: F401
-    return meshcat
-
-
-def _meshcat_classes():
-    """Two Meshcat element types missing from meshcat-python 0.3.2 but drawn by its viewer: a text canvas
-    texture (`_text`) and a plane geometry."""
-    import meshcat.geometry as g
-
-    class TextTexture(g.Texture):
-        def __init__(self, text: str, font_size: int = 48, font_face: str = "sans-serif"):
-            super().__init__()
-            self.text, self.font_size, self.font_face = text, font_size, font_face
-
-        def lower(self, object_data):
-            return {"uuid": self.uuid, "type": "_text", "text": self.text,
-                    "font_size": self.font_size, "font_face": self.font_face}
-
-    class Plane(g.Geometry):
-        def __init__(self, width: float, height: float):
-            super().__init__()
-            self.width, self.height = width, height
-
-        def lower(self, object_data):
-            return {"uuid": self.uuid, "type": "PlaneGeometry", "width": self.width, "height": self.height,
-                    "widthSegments": 1, "heightSegments": 1}
-
-    return TextTexture, Plane
-
-
 def _rot_x90() -> NDArray:
     T = np.eye(4)
     T[1:3, 1:3] = [[0.0, -1.0], [1.0, 0.0]]
@@ -423,12 +308,10 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
     The static pose is what a viewer shows before the animation starts and where a property is not
     animated yet; it must equal the animation's first frame when the animation may reach the browser
     before the static commands (meshcat's live server replays the animation first), see
-    `_RecordingWindow.get_scene`.
+    `meshcat_html.RecordingWindow.get_scene`.
     """
     import meshcat.animation as mca
-    import meshcat.geometry as g
 
-    TextTexture, Plane = _meshcat_classes()
     center, radius = _scene_bounds(frames, obj)
     T_world_palm = np.eye(4)
     T_world_palm[:3, 3] = -center   # the scene centre at the origin, where the camera looks
@@ -444,9 +327,24 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
     root = vis[_ROOT]
     root.set_transform(T_world_palm)
 
+    _add_hand_geometry(root["hand"], hand)
+    _add_object(root["object"], plan, obj)
+    _add_contact_markers(root["contacts"], plan)
+    _add_step_labels(vis[_LABELS], plan, float(np.linalg.norm(off)), frames[static_frame].step)
+    _set_pose(root, plan, frames[static_frame])
+    anim = mca.Animation(default_framerate=fps)
+    _animate_transforms(anim, root, plan, frames, fps)
+    _animate_step_labels(anim, vis[_LABELS], len(plan.steps), frames, fps)
+    vis.set_animation(anim, play=True, repetitions=1)
+
+
+def _add_hand_geometry(hand_node, hand: Hand) -> None:
+    """The hand's visual shapes, one node per shape under `hand_node/<link>` (animated per link)."""
+    import meshcat.geometry as g
+
     hand_mat = g.MeshLambertMaterial(color=HAND_COLOR)
     for n, sh in enumerate(hand_visuals(hand)):
-        node = root["hand"][sh.link][f"v{n}"]
+        node = hand_node[sh.link][f"v{n}"]
         T = sh.T_link_visual
         if sh.kind == "box":
             geom = g.Box(list(sh.params["size"]))
@@ -460,33 +358,50 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
         node.set_object(geom, hand_mat)
         node.set_transform(T)
 
+
+def _add_object(object_node, plan: Plan, obj: ObjectModel) -> None:
+    """The object mesh and the desired contacts (green spheres) fixed in the object frame."""
+    import meshcat.geometry as g
+
     mesh = obj.mesh
-    root["object"]["mesh"].set_object(
+    object_node["mesh"].set_object(
         g.TriangularMeshGeometry(np.asarray(mesh.vertices), np.asarray(mesh.faces)),
         g.MeshLambertMaterial(color=OBJECT_COLOR, opacity=OBJECT_OPACITY))
     goal_geom, goal_mat = g.Sphere(GOAL_RADIUS), g.MeshLambertMaterial(color=GOAL_COLOR)
     for r, p in enumerate(np.asarray(plan.goal_contacts_object, dtype=float)):
-        node = root["object"]["goal_contacts"][str(plan.fingers[r])]
+        node = object_node["goal_contacts"][str(plan.fingers[r])]
         node.set_object(goal_geom, goal_mat)
-        T = np.eye(4)
-        T[:3, 3] = p
-        node.set_transform(T)
+        node.set_transform(_translation(p))
+
+
+def _add_contact_markers(contacts_node, plan: Plan) -> None:
+    """One red sphere per finger for the current contact (placed in the palm frame by the animation)."""
+    import meshcat.geometry as g
+
     contact_geom, contact_mat = g.Sphere(CONTACT_RADIUS), g.MeshLambertMaterial(color=CONTACT_COLOR)
     for finger in plan.fingers:
-        root["contacts"][str(finger)].set_object(contact_geom, contact_mat)
+        contacts_node[str(finger)].set_object(contact_geom, contact_mat)
 
-    # labels: one textured plane per step attached to the camera (a HUD), visible during its step only
-    dist = 0.25 * float(np.linalg.norm(off))   # in front of the scene: never hidden by it
+
+def _add_step_labels(labels_node, plan: Plan, camera_distance: float, static_step: int) -> None:
+    """One textured plane per step attached to the camera (a HUD); only `static_step`'s is visible.
+
+    `camera_distance` (m) is the camera's distance from the scene centre: the labels sit at a quarter
+    of it in front of the camera, so that the scene never hides them.
+    """
+    import meshcat.geometry as g
+
+    TextTexture, Plane = text_and_plane_classes()
+    dist = 0.25 * camera_distance
     half_h = dist * np.tan(np.radians(_CAMERA_FOV_DEG) / 2.0)
     size = 0.6 * half_h
     T_cam_label = np.eye(4)
     T_cam_label[:3, 3] = [-1.25 * half_h + size / 2, half_h - size * 0.3, -dist]
     n_steps = len(plan.steps)
-    static_step = frames[static_frame].step
     # one font size for every label (the viewer shrinks text to its 256 px canvas): fit the longest
     font_size = int(min(40, 256 / (0.56 * max(len(step_label(plan, i)) for i in range(n_steps)))))
     for i in range(n_steps):
-        node = vis[_LABELS][f"step_{i}"]
+        node = labels_node[f"step_{i}"]
         node.set_object(Plane(size, size),
                         g.MeshBasicMaterial(map=TextTexture(step_label(plan, i), font_size=font_size),
                                             transparent=True,
@@ -494,15 +409,18 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
         node.set_transform(T_cam_label)
         node.set_property("visible", i == static_step)
 
-    def pose(f: Keyframe) -> None:
-        for link, T in f.T_palm_link.items():
-            root["hand"][link].set_transform(T)
-        root["object"].set_transform(f.T_palm_object)
-        for r, finger in enumerate(plan.fingers):
-            root["contacts"][str(finger)].set_transform(_translation(f.p_palm_contacts[r]))
 
-    pose(frames[static_frame])
-    anim = mca.Animation(default_framerate=fps)
+def _set_pose(root, plan: Plan, f: Keyframe) -> None:
+    """The static pose of every link, the object and the contact markers at keyframe `f`."""
+    for link, T in f.T_palm_link.items():
+        root["hand"][link].set_transform(T)
+    root["object"].set_transform(f.T_palm_object)
+    for r, finger in enumerate(plan.fingers):
+        root["contacts"][str(finger)].set_transform(_translation(f.p_palm_contacts[r]))
+
+
+def _animate_transforms(anim, root, plan: Plan, frames: list[Keyframe], fps: float) -> None:
+    """Position and rotation tracks of every link, the object and the contact markers."""
     key_frames = [f.time * fps for f in frames]
     for link in frames[0].T_palm_link:
         _transform_tracks(anim, root["hand"][link].path, key_frames,
@@ -511,15 +429,20 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
     for r, finger in enumerate(plan.fingers):
         Ts = np.stack([_translation(f.p_palm_contacts[r]) for f in frames])
         _transform_tracks(anim, root["contacts"][str(finger)].path, key_frames, Ts, fps)
+
+
+def _animate_step_labels(anim, labels_node, n_steps: int, frames: list[Keyframe], fps: float) -> None:
+    """Boolean (discrete) visibility tracks: label i is on from step i to step i + 1."""
+    import meshcat.animation as mca
+
     t_steps = [f.time for f in frames if f.alpha >= 1.0]   # the keyframes exactly at the steps
-    for i in range(n_steps):   # boolean tracks are discrete: label i is on from step i to step i+1
+    for i in range(n_steps):
         keys = {0.0: False, t_steps[i]: True}
         if i + 1 < n_steps:
             keys[t_steps[i + 1]] = False
-        clip = anim.clips.setdefault(vis[_LABELS][f"step_{i}"].path, mca.AnimationClip(fps=fps))
+        clip = anim.clips.setdefault(labels_node[f"step_{i}"].path, mca.AnimationClip(fps=fps))
         clip.tracks["visible"] = mca.AnimationTrack(
             "visible", "boolean", [t * fps for t in keys], list(keys.values()))
-    vis.set_animation(anim, play=True, repetitions=1)
 
 
 def _translation(p: NDArray) -> NDArray:
@@ -561,10 +484,10 @@ def _title(plan: Plan, obj: ObjectModel) -> str:
 def scene_html(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, fps: float = 8,
                seconds_per_step: float = 0.8) -> str:
     """The self-contained HTML replay of `plan` as a string (see `write_html`)."""
-    meshcat = _import_meshcat()
+    meshcat = import_meshcat()
     hand, obj = plan_models(plan, hand, obj)
     frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
-    vis = meshcat.Visualizer(window=_RecordingWindow())
+    vis = meshcat.Visualizer(window=RecordingWindow())
     _build_scene(vis, plan, hand, obj, frames, fps)
     html = vis.static_html()
     title = _title(plan, obj).replace("&", "&amp;").replace("<", "&lt;")
@@ -613,7 +536,7 @@ def show(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, f
         ValueError: `host` is not an address of this machine.
         RegraspError: the server did not start.
     """
-    meshcat = _import_meshcat()
+    meshcat = import_meshcat()
     hand, obj = plan_models(plan, hand, obj)
     frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
     if zmq_url is None:

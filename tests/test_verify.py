@@ -139,7 +139,11 @@ def test_too_long_gait(models):
     assert _found(report) == {(1, "gait_step", "left")}
     assert report.violations[0].amount == pytest.approx(0.015, abs=1e-12)
     assert report.violations[0].limit == 0.01
-    # an explicit eta overrides the plan's option
+    # the plan's own eta does not loosen the bound; the caller's does
+    loose = Plan.from_dict({**_plan(hand, obj, _valid_specs(hand, gait_left=-0.015)).to_dict(),
+                            "options": {**OPTIONS, "eta": 0.02}})
+    assert _found(verify(loose, hand, obj)) == {(1, "gait_step", "left")}
+    assert verify(loose, hand, obj).metrics["plan_options"]["eta"] == 0.02
     assert verify(_plan(hand, obj, _valid_specs(hand, gait_left=-0.015)), hand, obj, eta=0.02).ok
 
 
@@ -188,3 +192,61 @@ def test_verify_does_not_use_smooth_distance_or_nlps(models, monkeypatch):
             "bad = [m for m in ('finger_gait', 'in_grasp', 'planner', 'terms') "
             "if 'regrasp_casadi.' + m in sys.modules]; print(bad); sys.exit(1 if bad else 0)")
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, check=False).returncode == 0
+
+
+def test_checks_are_a_table_of_named_functions(models):
+    """Every check name in the table reports under that name, and a check added to the table runs."""
+    from regrasp_casadi import verify as verify_module
+
+    hand, obj = models
+    names = [c.name for c in verify_module.CHECK_TABLE]
+    assert tuple(names) == verify_module.CHECKS and len(set(names)) == len(names)
+    extra = verify_module.Check("always", lambda ctx, k, step: [verify_module.Finding("", k, 0, "x")])
+    table = verify_module.CHECK_TABLE
+    try:
+        verify_module.CHECK_TABLE = (*table, extra)
+        report = verify(_plan(hand, obj, _valid_specs(hand)), hand, obj)
+    finally:
+        verify_module.CHECK_TABLE = table
+    assert [(v.step, v.check, v.amount) for v in report.violations] == [(k, "always", k) for k in range(5)]
+
+
+@pytest.fixture(scope="module")
+def forged_plan(tmp_path_factory):
+    """A real one-iteration plan of problems/box_shift.yaml (valid but far from the goal), relabelled
+    "converged" and claiming ζ = 1 m in its options."""
+    from pathlib import Path
+
+    from regrasp_casadi.planner import plan_regrasp
+    from regrasp_casadi.problem import RegraspProblem
+
+    problem = RegraspProblem.load(Path(__file__).resolve().parents[1] / "problems" / "box_shift.yaml")
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", max_iters=1)
+    assert plan.status == "iteration_limit" and verify(plan, problem.hand, problem.obj).ok
+    d = plan.to_dict()
+    d["status"], d["options"] = "converged", {**d["options"], "zeta": 1.0}
+    path = Plan.from_dict(d).save(tmp_path_factory.mktemp("forged") / "forged.json")
+    return problem, Plan.load(path), path
+
+
+def test_a_forged_converged_claim_is_rejected_whatever_the_plan_says(forged_plan):
+    problem, plan, _ = forged_plan
+    error = float(np.max(plan.steps[-1].contact_error))
+    assert error > 0.02  # one iteration leaves the contacts centimetres from the goal
+    report = verify(plan, problem.hand, problem.obj)
+    assert [(v.step, v.check, v.amount, v.limit) for v in report.violations] == [
+        (len(plan.steps) - 1, "converged_claim", pytest.approx(error, abs=1e-12), 0.006)]
+    assert report.metrics["plan_options"]["zeta"] == 1.0 and report.metrics["tolerances"]["zeta"] == 0.006
+    assert verify(plan, problem.hand, problem.obj, zeta=error + 1e-3).ok  # the caller may loosen it
+
+
+def test_cli_verify_judges_with_its_own_zeta(forged_plan, capsys):
+    from regrasp_casadi.cli import main
+
+    _, plan, path = forged_plan
+    error_mm = float(np.max(plan.steps[-1].contact_error)) * 1e3
+    assert main(["verify", str(path)]) == 1
+    assert "converged_claim" in capsys.readouterr().out
+    assert main(["verify", str(path), "--zeta", f"{error_mm + 1:.3f}"]) == 0
+    assert main(["verify", str(path), "--zeta", f"{error_mm - 1:.3f}"]) == 1
+    assert main(["verify", str(path), "--zeta", "-1"]) == 2

@@ -157,8 +157,10 @@ def test_linear_option_and_bad_arguments(plan, hand, obj):
 
 
 def _recorded_scene(plan, hand, obj, fps=8, sps=0.5):
-    meshcat = viewer._import_meshcat()
-    window = viewer._RecordingWindow()
+    from regrasp_casadi.meshcat_html import RecordingWindow, import_meshcat
+
+    meshcat = import_meshcat()
+    window = RecordingWindow()
     vis = meshcat.Visualizer(window=window)
     frames = viewer.plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=sps)
     viewer._build_scene(vis, plan, hand, obj, frames, fps)
