@@ -78,6 +78,10 @@ polygon of radius μ, so the grasp is in force closure however the linearised co
 _CORRECTION_ROUNDS = 5
 _CLEARANCE_PLANES = 16  # planes per piece of the coarse distance used for the non-tip spheres
 _TAU = 2e-3  # smoothing temperature of the NLP's distance, m (the exact-minus-smooth offset removes its bias)
+_SOLVER_OPTIONS = _solver.SolverOptions(max_iter=400, tol=1e-10, acceptable_tol=None, acceptable_iter=None,
+                                        constr_viol_tol=1e-9, warm_start=False, bound_relax_factor=0.0,
+                                        linear_solver=None)
+"""Tight tolerances and exact bounds: a generated grasp is checked to 0.1 mm with the exact distance."""
 
 
 # ------------------------------------------------------------------------------------ force closure
@@ -154,17 +158,9 @@ class _GraspNLP:
         self.lbx = np.concatenate([hand.q_lower, np.full(3, -0.05), np.full(3, -0.5)])
         self.ubx = np.concatenate([hand.q_upper, np.full(3, 0.05), np.full(3, 0.5)])
         # solver
-        opts = {
-            "print_time": False,
-            "ipopt.print_level": 0,
-            "ipopt.sb": "yes",
-            "ipopt.max_iter": 400,
-            "ipopt.tol": 1e-10,
-            "ipopt.constr_viol_tol": 1e-9,
-            "ipopt.bound_relax_factor": 0.0,
-            "ipopt.mu_strategy": "adaptive",
-        }
-        self.solver = ca.nlpsol("grasp_synthesis", "ipopt", {"x": x, "p": p, "f": f, "g": g}, opts)
+        nlp = {"x": x, "p": p, "f": f, "g": g}
+        self.solver = _solver.build_solver("grasp_synthesis", nlp, _SOLVER_OPTIONS)
+        self.bounds = _solver.Bounds(self.lbx, self.ubx, self.lbg, self.ubg)
         self.eval_points = ca.Function("grasp_points", [x, p], [tips_obj, sph_obj, sd_tip, sd_sph])
 
     def pack(self, R0, t0, targets, delta_tip, delta_sph, q_ref, weights) -> NDArray[np.float64]:
@@ -175,9 +171,8 @@ class _GraspNLP:
         C = np.asarray(terms.cayley_rotation(ca.DM(x[self.n + 3:])))
         return make_T(R0 @ C, t0 + x[self.n:self.n + 3])
 
-    def solve(self, x0, p) -> tuple[NDArray[np.float64], str]:
-        res = _solver.solve(self.solver, x0=x0, p=p, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
-        return res.x, res.status
+    def solve(self, x0, p) -> _solver.SolveResult:
+        return _solver.solve(self.solver, x0=x0, p=p, **self.bounds.kwargs())
 
 
 _STATS: collections.Counter = collections.Counter()
@@ -379,59 +374,46 @@ def _initial_q(hand, ws, goals_palm, rng) -> NDArray[np.float64]:
 
 
 # --------------------------------------------------------------------------------------- attempt
+@dataclass(frozen=True)
+class _Round:
+    """What one solve of the grasp NLP is given: the pose prior, the joint prior, the objective weights
+    and the exact-distance offsets."""
+
+    R0: NDArray[np.float64]
+    t0: NDArray[np.float64]
+    q_ref: NDArray[np.float64]
+    weights: NDArray[np.float64]  # target, joints, translation, rotation
+    delta_tip: NDArray[np.float64]
+    delta_sph: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class _Check:
+    """The exact checks at one solution (after the Newton polish of the tips, if it was made)."""
+
+    x: NDArray[np.float64]
+    T_palm_object: NDArray[np.float64]
+    ex_tip: NDArray[np.float64]
+    ex_sph: NDArray[np.float64]
+    sd_tip: NDArray[np.float64]
+    sd_sph: NDArray[np.float64]
+    ok: bool
+
+
 def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance) -> Grasp | None:
     T0 = _sample_pose(hand, obj, data, rng, guess)
     idx = _pick_targets(hand, data, ws, T0, rng, avoid, min_mean_distance, mu)
     if idx is None:
         _STATS["no_targets"] += 1
         return None
-    r = hand.tip_radius
-    targets_obj = data.points[idx] + r * data.normals[idx]
+    targets_obj = data.points[idx] + hand.tip_radius * data.normals[idx]
     q0 = _initial_q(hand, ws, transform_points(T0, targets_obj), rng)
-    R0, t0 = T0[:3, :3], T0[:3, 3]
-    m, k = nlp.m, nlp.k
-    delta_tip, delta_sph = np.zeros(m), np.zeros(k)
-    weights = np.array([1.0, 0.1, 1.0, 10.0])
-    q_ref = q0
-    x = np.concatenate([q0, np.zeros(6)])
-    for rnd in range(_CORRECTION_ROUNDS):
-        p = nlp.pack(R0, t0, targets_obj, delta_tip, delta_sph, q_ref, weights)
-        x, status = nlp.solve(x, p)
-        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
-            log.debug("grasp NLP round %d: %s", rnd, status)
-            _STATS["nlp_" + status] += 1
-            return None
-        tips_obj, sph_obj, sd_tip, sd_sph = (np.asarray(v) for v in nlp.eval_points(x, p))
-        ex_tip = obj.exact_signed_distance(tips_obj.T)
-        ex_sph = obj.exact_signed_distance(sph_obj.T)
-        tip_ok = np.all(np.abs(ex_tip - r) <= 0.5 * SURFACE_TOL)
-        sph_ok = np.all(ex_sph - nlp.radii >= nlp.beta + 2e-4)
-        if sph_ok and not tip_ok and np.max(np.abs(ex_tip - r)) < 2e-3:
-            q_pol = _polish_tips(hand, obj, x[: nlp.n], nlp.pose(x, R0, t0))
-            if q_pol is not None:
-                x = np.concatenate([q_pol, x[nlp.n:]])
-                tip_ok = True
-        if tip_ok and sph_ok:
-            break
-        log.debug("round %d: tip error %.3g mm, min clearance %.3g mm", rnd, 1e3 * np.max(np.abs(ex_tip - r)),
-                  1e3 * np.min(ex_sph - nlp.radii))
-        delta_tip = ex_tip - sd_tip.ravel()
-        # spheres near the object get the exact-minus-smooth offset (either sign); far ones only tighten
-        near = ex_sph - nlp.radii < 0.005
-        delta_sph = np.where(near, ex_sph - sd_sph.ravel(), np.minimum(delta_sph, ex_sph - sd_sph.ravel()))
-        # polish: re-centre the pose prior on the solution and pull q towards it (a proximal term), so
-        # the tips stay where the offsets were measured and the correction converges
-        T_cur = nlp.pose(x, R0, t0)
-        R0, t0, q_ref = T_cur[:3, :3], T_cur[:3, 3], x[: nlp.n].copy()
-        x = np.concatenate([q_ref, np.zeros(6)])
-        weights = np.array([0.01, 10.0, 10.0, 100.0])
-    else:
-        _STATS["not_exact"] += 1
+    check = _solve_exact(hand, obj, nlp, targets_obj, q0, T0)
+    if check is None:
         return None
-    q = np.clip(x[: nlp.n], hand.q_lower, hand.q_upper)
-    T = nlp.pose(x, R0, t0)
+    q = np.clip(check.x[: nlp.n], hand.q_lower, hand.q_upper)
     try:
-        grasp = Grasp.from_joints(hand, obj, q, T, tol=SURFACE_TOL)
+        grasp = Grasp.from_joints(hand, obj, q, check.T_palm_object, tol=SURFACE_TOL)
     except GraspError as exc:
         log.debug("rejected: %s", exc)
         return None
@@ -445,6 +427,56 @@ def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance)
         return None
     _STATS["ok"] += 1
     return grasp
+
+
+def _solve_exact(hand, obj, nlp: _GraspNLP, targets_obj, q0, T0) -> _Check | None:
+    """Solve the grasp NLP from (q0, T0) towards the tip targets, with exact-distance offset corrections
+    and proximal re-centring, until the exact checks hold; None if they do not within the rounds."""
+    r = hand.tip_radius
+
+    def params(rnd: _Round):
+        return nlp.pack(rnd.R0, rnd.t0, targets_obj, rnd.delta_tip, rnd.delta_sph, rnd.q_ref, rnd.weights)
+
+    def evaluate(x, rnd: _Round) -> _Check:
+        tips_obj, sph_obj, sd_tip, sd_sph = (np.asarray(v) for v in nlp.eval_points(x, params(rnd)))
+        ex_tip = obj.exact_signed_distance(tips_obj.T)
+        ex_sph = obj.exact_signed_distance(sph_obj.T)
+        tip_ok = np.all(np.abs(ex_tip - r) <= 0.5 * SURFACE_TOL)
+        sph_ok = np.all(ex_sph - nlp.radii >= nlp.beta + 2e-4)
+        if sph_ok and not tip_ok and np.max(np.abs(ex_tip - r)) < 2e-3:
+            q_pol = _polish_tips(hand, obj, x[: nlp.n], nlp.pose(x, rnd.R0, rnd.t0))
+            if q_pol is not None:
+                x = np.concatenate([q_pol, x[nlp.n:]])
+                tip_ok = True
+        return _Check(x, nlp.pose(x, rnd.R0, rnd.t0), ex_tip, ex_sph, sd_tip.ravel(), sd_sph.ravel(),
+                      bool(tip_ok and sph_ok))
+
+    def new_round(x, c: _Check, rnd: _Round) -> _Round:
+        log.debug("tip error %.3g mm, min clearance %.3g mm", 1e3 * np.max(np.abs(c.ex_tip - r)),
+                  1e3 * np.min(c.ex_sph - nlp.radii))
+        # spheres near the object get the exact-minus-smooth offset (either sign); far ones only tighten
+        near = c.ex_sph - nlp.radii < 0.005
+        delta_sph = np.where(near, c.ex_sph - c.sd_sph, np.minimum(rnd.delta_sph, c.ex_sph - c.sd_sph))
+        # polish: re-centre the pose prior on the solution and pull q towards it (a proximal term), so
+        # the tips stay where the offsets were measured and the correction converges
+        T_cur = c.T_palm_object
+        return _Round(T_cur[:3, :3], T_cur[:3, 3], x[: nlp.n].copy(), np.array([0.01, 10.0, 10.0, 100.0]),
+                      c.ex_tip - c.sd_tip, delta_sph)
+
+    first = _Round(T0[:3, :3], T0[:3, 3], q0, np.array([1.0, 0.1, 1.0, 10.0]), np.zeros(nlp.m),
+                   np.zeros(nlp.k))
+    corr = _solver.correct_offsets(
+        lambda x, rnd: nlp.solve(np.concatenate([rnd.q_ref, np.zeros(6)]), params(rnd)), evaluate,
+        lambda c: c.ok, new_round, offsets=first, x=np.concatenate([q0, np.zeros(6)]), evaluation=None,
+        max_solves=_CORRECTION_ROUNDS, accept=lambda res: res.x if res.success else None)
+    if not corr.usable:
+        log.debug("grasp NLP round %d: %s", corr.solves - 1, corr.result.status)
+        _STATS["nlp_" + corr.result.status] += 1
+        return None
+    if not corr.converged:
+        _STATS["not_exact"] += 1
+        return None
+    return corr.evaluation
 
 
 def _polish_tips(hand: Hand, obj: ObjectModel, q, T_palm_object, iters: int = 6):

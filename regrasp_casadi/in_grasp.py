@@ -241,17 +241,19 @@ class InGraspNLP:
         g = _MM * (sd_l + delta_l - ca.DM(radii_all))
         # bounds
         big_t, big_w = o.max_translation, o.max_rotation
-        self._lbx = np.concatenate([hand.q_lower, np.full(3, -big_t), np.full(3, -big_w)])
-        self._ubx = np.concatenate([hand.q_upper, np.full(3, big_t), np.full(3, big_w)])
-        self._lbg = np.concatenate([np.full(k, _MM * o.beta), np.zeros(m)])
-        self._ubg = np.concatenate([np.full(k, np.inf), np.zeros(m)])
+        self._bounds = _solver.Bounds(
+            lbx=np.concatenate([hand.q_lower, np.full(3, -big_t), np.full(3, -big_w)]),
+            ubx=np.concatenate([hand.q_upper, np.full(3, big_t), np.full(3, big_w)]),
+            lbg=np.concatenate([np.full(k, _MM * o.beta), np.zeros(m)]),
+            ubg=np.concatenate([np.full(k, np.inf), np.zeros(m)]))
         self._radii_all = radii_all
         # solver
-        self._solver = ca.nlpsol(f"in_grasp_{method}", "ipopt", {"x": x, "p": p, "f": f, "g": g},
-                                 _solver.ipopt_options(print_level=o.print_level))
+        self._solver = _solver.build_solver(f"in_grasp_{method}", {"x": x, "p": p, "f": f, "g": g},
+                                            _solver.SolverOptions(print_level=o.print_level))
         self._points = ca.Function("in_grasp_points", [x, p], [s_obj, sd_l, R, t],
                                    ["x", "p"], ["p_object_spheres", "sd_l", "R_palm_object", "t_palm_object"])
-        self._lam = None
+        self.warm_start = _solver.WarmStart()
+        """Multipliers of the last successful solve, for the next one."""
 
     @classmethod
     def build_count(cls) -> int:
@@ -260,7 +262,7 @@ class InGraspNLP:
 
     def reset(self) -> None:
         """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""
-        self._lam = None
+        self.warm_start.reset()
 
     def _offsets(self, exact: NDArray, smooth: NDArray) -> NDArray:
         """Exact-distance offsets δ: the tips' in full (an equality), the clearance spheres' only where
@@ -321,46 +323,45 @@ class InGraspNLP:
         """One move with the parameters in their NLP layout: `grasp` (R0, t0, tip centres, tip
         orientations), `tip_planes` (normals, offsets) and `target` (pose or goal tip centres)."""
         o = self.options
-        hand = self.hand
 
         def params(delta):
             return np.concatenate([grasp, delta, tip_planes, target])
 
-        x = np.concatenate([q, np.zeros(6)])
-        zeros = np.zeros(self._k + self._m)
-        exact, smooth, _ = self._exact_clearance(x, params(zeros))
-        delta = self._offsets(exact, smooth)
-        t_solve, iters = 0.0, 0
-        res = None
-        for _ in range(o.max_corrections + 1):
-            p = params(delta)
-            lam_x, lam_g = self._lam if self._lam is not None else (None, None)
-            res = _solver.solve(self._solver, x0=np.concatenate([q, np.zeros(6)]), p=p, lbx=self._lbx,
-                                ubx=self._ubx, lbg=self._lbg, ubg=self._ubg, lam_x0=lam_x, lam_g0=lam_g)
-            t_solve += res.time
-            iters += max(res.iterations, 0)
-            if not np.all(np.isfinite(res.x)):
-                break
-            x = np.clip(res.x, self._lbx, self._ubx)
-            if res.success:
-                self._lam = (res.lam_x, res.lam_g)
-            exact, smooth, _ = self._exact_clearance(x, p)
-            gap = exact - self._radii_all
+        x_start = np.concatenate([q, np.zeros(6)])
+
+        def solve_with(x, delta):  # every solve starts at the grasp (x_start), warm multipliers aside
+            return self.warm_start.solve(self._solver, self._bounds, x0=x_start, p=params(delta))
+
+        def done(ev) -> bool:
+            gap = ev[0] - self._radii_all
             clear = np.min(gap[: self._k], initial=np.inf)
-            if clear >= 0.5 * o.beta and np.max(np.abs(gap[self._k:])) <= 5e-5:
-                break
-            delta = self._offsets(exact, smooth)
-        _, _, R_new, t_new = self._points(x, params(zeros))  # (`exact` is already at x)
+            return bool(clear >= 0.5 * o.beta and np.max(np.abs(gap[self._k:])) <= 5e-5)
+
+        zeros = np.zeros(self._k + self._m)
+        start = self._exact_clearance(x_start, params(zeros))
+        corr = _solver.correct_offsets(
+            solve_with, lambda x, delta: self._exact_clearance(x, params(delta)), done,
+            lambda x, ev, delta: self._offsets(*ev[:2]), offsets=self._offsets(*start[:2]), x=x_start,
+            evaluation=start, max_solves=o.max_corrections + 1,
+            accept=_solver.clipped_if_finite(self._bounds))
+        return self._result(corr, c_tips, params(zeros))
+
+    def _result(self, corr: _solver.Correction, c_tips: NDArray, p_zero: NDArray) -> InGraspResult:
+        """The move's result from the correction loop's last point, judged with the exact distances."""
+        o = self.options
+        x, exact = corr.x, corr.evaluation[0]
+        _, _, R_new, t_new = self._points(x, p_zero)  # (`exact` is already at x)
         T_new = make_T(np.asarray(R_new), np.asarray(t_new).ravel())
         surface_error = float(np.max(np.abs(exact[self._k:] - self.hand.tip_radius)))
         q_new = x[: self._n]
-        tips_obj = (hand.tip_positions(q_new) - T_new[:3, 3]) @ T_new[:3, :3]
+        tips_obj = (self.hand.tip_positions(q_new) - T_new[:3, 3]) @ T_new[:3, :3]
         max_slip = float(np.max(np.linalg.norm(tips_obj - c_tips, axis=1)))
         min_clear = float(np.min(exact[: self._k] - self._radii)) if self._k else float("inf")
         # accepted when the exact checks hold, whatever IPOPT's status (e.g. a converged point reported
         # as Search_Direction_Becomes_Too_Small is still a valid reposing)
         ok = bool(np.all(np.isfinite(x)) and min_clear >= 0.0 and max_slip <= o.max_slip
                   and surface_error <= 1e-4)
-        return InGraspResult(q=q_new, T_palm_object=T_new, status=res.status, success=ok,
-                             iterations=iters, solve_time=t_solve, max_slip=max_slip,
+        status = corr.result.status if corr.result is not None else "not_solved"
+        return InGraspResult(q=q_new, T_palm_object=T_new, status=status, success=ok,
+                             iterations=corr.iterations, solve_time=corr.solve_time, max_slip=max_slip,
                              min_clearance=min_clear, surface_error=surface_error)
