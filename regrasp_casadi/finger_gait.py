@@ -75,6 +75,21 @@ class FingerGaitResult:
     """Smallest exact distance of the finger's other spheres to the object, m."""
 
 
+def _param_layout(n: int, k: int, n_planes: int) -> _solver.ParamLayout:
+    """OPT1's parameters for a hand of `n` joints, a finger of `k` non-tip spheres and `n_planes` local
+    planes near the tip."""
+    return _solver.ParamLayout([
+        ("q_all", (n,)),  # joints at the start of the gait, rad (the other fingers keep them)
+        ("R_palm_object", (3, 3)),  # object pose, palm frame
+        ("t_palm_object", (3,)),  # m
+        ("p_object_tip_goal", (3,)),  # goal tip-sphere centre, object frame, m
+        ("delta_tip", (1,)),  # exact-distance offset of the tip, m
+        ("delta_l", (k,)),  # exact-distance offsets of the finger's other spheres, m
+        ("normals_tip", (3 * n_planes,)),  # local planes near the tip, as terms.local_signed_distance
+        ("offsets_tip", (n_planes,)),  # reads them (C order of ObjectModel.local_planes), object frame
+    ])
+
+
 @dataclass(frozen=True)
 class _Evaluation:
     """The finger at one point of the correction loop."""
@@ -107,8 +122,8 @@ class FingerGaitNLP:
     make contacts exact: after a solve, δ = SD_exact − SD_smooth at the solution and the NLP is solved
     again (warm started) until the tip sits on the real mesh within `surface_tol`.
 
-    Decision variables: the finger's joints (n_r,). Parameters: the full joint vector (n,), the object
-    pose (R column-major (9,), t (3,)), the goal tip centre (3,) object frame, δ_tip (1,), δ_l (k,), the
+    Decision variables: the finger's joints (n_r,). Parameters (`layout`): the full joint vector (n,),
+    the object pose (R (3, 3), t (3,)), the goal tip centre (3,) object frame, δ_tip (1,), δ_l (k,), the
     tip's local planes (normals, offsets).
     The objective is in cm² and the distance constraints in mm, for IPOPT's tolerances.
     """
@@ -137,16 +152,9 @@ class FingerGaitNLP:
         # decision variables
         q_r = ca.SX.sym("q_r", idx.size)
         # parameters
-        q_all = ca.SX.sym("q_all", n)
-        R_vec = ca.SX.sym("R_palm_object", 9)
-        t = ca.SX.sym("t_palm_object", 3)
-        c_goal = ca.SX.sym("p_object_tip_goal", 3)
-        delta_tip = ca.SX.sym("delta_tip", 1)
-        delta_l = ca.SX.sym("delta_l", k)
-        N_tip = ca.SX.sym("normals_tip", n_local * LOCAL_PLANES * 3)  # local planes near the tip
-        h_tip = ca.SX.sym("offsets_tip", n_local * LOCAL_PLANES)
-        p = ca.vertcat(q_all, R_vec, t, c_goal, delta_tip, delta_l, N_tip, h_tip)
-        R = ca.reshape(R_vec, 3, 3)
+        self.layout = _param_layout(n, k, n_local * LOCAL_PLANES)
+        p, P = self.layout.symbols()
+        q_all, R, t = P["q_all"], P["R_palm_object"], P["t_palm_object"]
 
         q_full = terms.substitute_joints(q_all, idx, q_r)
         tip_fun = hand.tip_position_function(finger)
@@ -159,14 +167,15 @@ class FingerGaitNLP:
         else:
             s_obj = ca.SX(3, 0)
             sd_l = ca.SX(0, 1)
-        sd_tip = signed_distance.local_signed_distance(N_tip, h_tip, c_obj, n_local, tau)
+        sd_tip = signed_distance.local_signed_distance(P["normals_tip"], P["offsets_tip"], c_obj, n_local,
+                                                       tau)
 
         # objective
-        f = _CM2 * ca.sumsqr(c_obj - c_goal)
+        f = _CM2 * ca.sumsqr(c_obj - P["p_object_tip_goal"])
         # constraints
         g = ca.vertcat(
-            _MM * (sd_tip + delta_tip - hand.tip_radius),
-            _MM * (sd_l + delta_l - ca.DM(radii)),
+            _MM * (sd_tip + P["delta_tip"] - hand.tip_radius),
+            _MM * (sd_l + P["delta_l"] - ca.DM(radii)),
             _CM2 * ca.sumsqr(c_palm - c_palm0),
         )
         # bounds
@@ -194,9 +203,12 @@ class FingerGaitNLP:
         """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""
         self.warm_start.reset()
 
-    def _params(self, q, T, c_goal, delta_tip, delta_l, planes):
-        return np.concatenate([q, T[:3, :3].ravel(order="F"), T[:3, 3], c_goal, [delta_tip], delta_l,
-                               planes[0].ravel(), planes[1].ravel()])
+    def _params(self, q, T, c_goal, delta, planes) -> NDArray[np.float64]:
+        """p of a solve from (`q`, `T`) towards `c_goal` with offsets `delta` (1 + k,) (tip, then the
+        other spheres) and the tip's local `planes` (normals, offsets)."""
+        return self.layout.pack(q_all=q, R_palm_object=T[:3, :3], t_palm_object=T[:3, 3],
+                                p_object_tip_goal=c_goal, delta_tip=delta[:1], delta_l=delta[1:],
+                                normals_tip=planes[0].ravel(), offsets_tip=planes[1].ravel())
 
     def _evaluate(self, q_r, p) -> _Evaluation:
         """Tip centre (object frame) and the exact and smooth (no offsets) distances (1 + k,) of the tip
@@ -227,7 +239,7 @@ class FingerGaitNLP:
         planes = self.obj.local_planes(selection, self._n_local)  # the planes that matter along the way
 
         def params(delta, planes):
-            return self._params(q, T, c_goal, delta[0], delta[1:], planes)
+            return self._params(q, T, c_goal, delta, planes)
 
         def solve_with(x, offsets):
             return self.warm_start.solve(self._solver, self._bounds, x0=x, p=params(*offsets))

@@ -127,14 +127,17 @@ class _GraspNLP:
         a = ca.MX.sym("a", 3)
         x = ca.vertcat(q, dt, a)
         # parameters
-        R0 = ca.MX.sym("R0", 3, 3)
-        t0 = ca.MX.sym("t0", 3)
-        targets = ca.MX.sym("targets", 3, m)  # tip-centre targets, object frame
-        delta_tip = ca.MX.sym("delta_tip", m)
-        delta_sph = ca.MX.sym("delta_sph", k)
-        q_ref = ca.MX.sym("q_ref", n)
-        weights = ca.MX.sym("weights", 4)  # target, joints, translation, rotation
-        p = ca.vertcat(ca.vec(R0), t0, ca.vec(targets), delta_tip, delta_sph, q_ref, weights)
+        self.layout = _solver.ParamLayout([
+            ("R0", (3, 3)),  # pose prior: object rotation, palm frame
+            ("t0", (3,)),  # pose prior: object position, palm frame, m
+            ("targets", (3, m)),  # tip-centre targets (columns), object frame, m
+            ("delta_tip", (m,)),  # exact-distance offsets of the tips, m
+            ("delta_sph", (k,)),  # exact-distance offsets of the non-tip spheres, m
+            ("q_ref", (n,)),  # joint prior, rad
+            ("weights", (4,)),  # of the target, joint, translation and rotation terms
+        ])
+        p, P = self.layout.symbols(ca.MX)
+        R0, t0, targets, q_ref, weights = P["R0"], P["t0"], P["targets"], P["q_ref"], P["weights"]
         R = ca.mtimes(R0, terms.cayley_rotation(a))
         t = t0 + dt
         tips_palm = hand.tip_positions_function()(q)
@@ -149,8 +152,8 @@ class _GraspNLP:
              + weights[2] * ca.sumsqr(dt) / _SCALE**2
              + weights[3] * ca.sumsqr(a))
         # constraints
-        g_tip = sd_tip.T + delta_tip - hand.tip_radius
-        g_sph = sd_sph.T + delta_sph - ca.DM(self.radii)
+        g_tip = sd_tip.T + P["delta_tip"] - hand.tip_radius
+        g_sph = sd_sph.T + P["delta_sph"] - ca.DM(self.radii)
         g = ca.vertcat(g_tip, g_sph)
         # bounds
         self.lbg = np.concatenate([np.zeros(m), np.full(k, self.beta + _MARGIN)])
@@ -164,8 +167,9 @@ class _GraspNLP:
         self.eval_points = ca.Function("grasp_points", [x, p], [tips_obj, sph_obj, sd_tip, sd_sph])
 
     def pack(self, R0, t0, targets, delta_tip, delta_sph, q_ref, weights) -> NDArray[np.float64]:
-        return np.concatenate([np.asarray(R0).ravel(order="F"), t0, np.asarray(targets).T.ravel(order="F"),
-                               delta_tip, delta_sph, q_ref, weights])
+        """p of a solve; `targets` (m, 3) tip-centre targets, object frame, m (rows per finger)."""
+        return self.layout.pack(R0=R0, t0=t0, targets=np.asarray(targets).T, delta_tip=delta_tip,
+                                delta_sph=delta_sph, q_ref=q_ref, weights=weights)
 
     def pose(self, x, R0, t0) -> NDArray[np.float64]:
         C = np.asarray(terms.cayley_rotation(ca.DM(x[self.n + 3:])))

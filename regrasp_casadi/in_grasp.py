@@ -139,6 +139,51 @@ def _facet_area(tri: NDArray[np.float64]) -> float:
     return 0.5 * float(np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])))
 
 
+def _param_layout(method: str, k: int, m: int, n_planes: int) -> _solver.ParamLayout:
+    """OPT2's parameters for a hand of `k` non-tip spheres and `m` fingers, `n_planes` local planes per
+    tip; the target blocks depend on the method."""
+    blocks = [
+        ("R0_palm_object", (3, 3)),  # object pose at the start, palm frame
+        ("t0_palm_object", (3,)),  # m
+        ("p_object_tips", (3, m)),  # tip-sphere centres at the start (columns), object frame, m
+        ("R_object_tips", (3, 3 * m)),  # tip orientations at the start, object frame: [R_1 | … | R_m]
+        ("delta_l", (k + m,)),  # exact-distance offsets: non-tip spheres, then tips, m
+        ("normals_tips", (3 * n_planes, m)),  # local planes near each tip (columns, as
+        ("offsets_tips", (n_planes, m)),  # terms.local_signed_distance reads them), object frame
+    ]
+    if method == "pose":
+        blocks += [("R_target", (3, 3)), ("t_target", (3,))]  # target object pose, palm frame
+    else:
+        blocks += [("p_object_tips_goal", (3, m))]  # goal tip-sphere centres (columns), object frame, m
+    return _solver.ParamLayout(blocks)
+
+
+def _relaxed_rigidity(hand: Hand, q: ca.SX, tips_palm: ca.SX, R: ca.SX, t: ca.SX, c_tips: ca.SX,
+                      R_tips: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """E_pos (mm²) and E_or of the relaxed rigidity: the tips (3, m) at `q` against the start contacts
+    `c_tips` (3, m) and orientations `R_tips` (3, 3m), object frame, carried by the object pose (R, t)."""
+    e_pos = 0
+    e_or = 0
+    for r, finger in enumerate(hand.fingers):
+        e_pos += ca.sumsqr(_MM * (tips_palm[:, r] - (R @ c_tips[:, r] + t)))
+        R_tip = hand.link_rotation_function(hand.tip_links[finger])(q)
+        e_or += terms.rotation_error_sq(R_tip, R @ R_tips[:, 3 * r: 3 * r + 3])
+    return e_pos, e_or
+
+
+def _outside_workspaces(hulls: list[WorkspaceHull], R: ca.SX, t: ca.SX, g_tips: ca.SX,
+                        o: InGraspOptions) -> ca.SX:
+    """E_des of the SD method, mm: Σ_r softplus(SD(R g_r + t, R_r) + margin), the goal tip centres
+    `g_tips` (3, m) (object frame) carried by the pose (R, t) against the workspace hulls (palm frame)."""
+    e_des = 0
+    for r, hull in enumerate(hulls):
+        d = signed_distance.hull_signed_distance(hull.normals, hull.offsets, R @ g_tips[:, r] + t,
+                                                 o.tau_hull)
+        d = d + o.sd_margin
+        e_des += _MM * terms.softplus(d, o.tau_hull)
+    return e_des
+
+
 class InGraspNLP:
     r"""OPT2, in-grasp manipulation (Sundaralingam & Hermans, ICRA 2018, §III-B), all joints Θ and the
     object pose (R, t) = (C(w) R₀, t₀ + Δt) as decision variables:
@@ -184,7 +229,6 @@ class InGraspNLP:
         self._radii, self._k, self._n, self._m = radii, k, n, m
         tau = float(DEFAULT_TAU if o.tau is None else o.tau)
         n_local = self._n_local = min(LOCAL_PIECES, len(obj.pieces))  # pieces per local plane set
-        n_planes = n_local * LOCAL_PLANES
         sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
         ell_mm = _MM * 0.5 * float(np.linalg.norm(obj.mesh.extents))
 
@@ -194,51 +238,27 @@ class InGraspNLP:
         w = ca.SX.sym("w", 3)
         x = ca.vertcat(q, dt, w)
         # parameters
-        R0_vec = ca.SX.sym("R0_palm_object", 9)
-        t0 = ca.SX.sym("t0_palm_object", 3)
-        c_tips = ca.SX.sym("p_object_tips", 3, m)
-        R_tips = ca.SX.sym("R_object_tips", 9, m)
-        delta_l = ca.SX.sym("delta_l", k + m)  # exact-distance offsets: non-tip spheres, then tips
-        N_tips = ca.SX.sym("normals_tips", 3 * n_planes, m)  # local planes near each tip
-        h_tips = ca.SX.sym("offsets_tips", n_planes, m)
-        if method == "pose":
-            R_star_vec = ca.SX.sym("R_target", 9)
-            t_star = ca.SX.sym("t_target", 3)
-            target = ca.vertcat(R_star_vec, t_star)
-        else:
-            g_tips = ca.SX.sym("p_object_tips_goal", 3, m)
-            target = ca.vec(g_tips)
-        p = ca.vertcat(R0_vec, t0, ca.vec(c_tips), ca.vec(R_tips), delta_l, ca.vec(N_tips), ca.vec(h_tips),
-                       target)
-        R, t = terms.pose_from_params(ca.reshape(R0_vec, 3, 3), t0, dt, w)
+        self.layout = _param_layout(method, k, m, n_local * LOCAL_PLANES)
+        p, P = self.layout.symbols()
+        R, t = terms.pose_from_params(P["R0_palm_object"], P["t0_palm_object"], dt, w)
 
         # objective
         tips_palm = hand.tip_positions_function()(q)  # (3, m)
-        e_pos = 0
-        e_or = 0
-        for r, finger in enumerate(hand.fingers):
-            e_pos += ca.sumsqr(_MM * (tips_palm[:, r] - (R @ c_tips[:, r] + t)))
-            R_tip = hand.link_rotation_function(hand.tip_links[finger])(q)
-            e_or += terms.rotation_error_sq(R_tip, R @ ca.reshape(R_tips[:, r], 3, 3))
+        e_pos, e_or = _relaxed_rigidity(hand, q, tips_palm, R, t, P["p_object_tips"], P["R_object_tips"])
         if method == "pose":
-            e_des = ca.sumsqr(_MM * (t - t_star)) + 0.5 * ell_mm**2 * terms.rotation_error_sq(
-                R, ca.reshape(R_star_vec, 3, 3))
+            e_des = ca.sumsqr(_MM * (t - P["t_target"])) + 0.5 * ell_mm**2 * terms.rotation_error_sq(
+                R, P["R_target"])
         else:
             self.hulls = [workspace_hull(hand, f) for f in hand.fingers]
-            e_des = 0
-            for r, hull in enumerate(self.hulls):
-                d = signed_distance.hull_signed_distance(hull.normals, hull.offsets, R @ g_tips[:, r] + t,
-                                                         o.tau_hull)
-                d = d + o.sd_margin
-                e_des += _MM * terms.softplus(d, o.tau_hull)
+            e_des = _outside_workspaces(self.hulls, R, t, P["p_object_tips_goal"], o)
         f = e_des + o.k_pos * e_pos + o.k_orient * e_or
         # constraints: non-tip spheres keep β; the tips stay on the surface
         s_obj = terms.to_object_frame(R, t, ca.horzcat(hand.sphere_centers_function(None)(q), tips_palm))
-        sd_tips = [signed_distance.local_signed_distance(N_tips[:, r], h_tips[:, r], s_obj[:, k + r], n_local,
-                                                         tau) for r in range(m)]
+        sd_tips = [signed_distance.local_signed_distance(P["normals_tips"][:, r], P["offsets_tips"][:, r],
+                                                         s_obj[:, k + r], n_local, tau) for r in range(m)]
         sd_l = ca.vertcat(terms.smooth_signed_distances(sd_coarse, s_obj[:, :k]), *sd_tips)
         radii_all = np.concatenate([radii, np.full(m, hand.tip_radius)])
-        g = _MM * (sd_l + delta_l - ca.DM(radii_all))
+        g = _MM * (sd_l + P["delta_l"] - ca.DM(radii_all))
         # bounds
         big_t, big_w = o.max_translation, o.max_rotation
         self._bounds = _solver.Bounds(
@@ -292,18 +312,17 @@ class InGraspNLP:
         T0 = np.asarray(T_palm_object, float)
         c_tips = np.asarray(p_object_tips, float).reshape(self._m, 3)
         fk = self.hand.fk(q)  # the grasp's data, the same for every try below
-        R_tips = np.stack([(T0[:3, :3].T @ fk[self.hand.tip_links[f]][:3, :3]).ravel(order="F")
-                           for f in self.hand.fingers], axis=1)
+        R_tips = np.hstack([T0[:3, :3].T @ fk[self.hand.tip_links[f]][:3, :3] for f in self.hand.fingers])
         planes = [self.obj.local_planes(c[None], self._n_local) for c in c_tips]  # tips stay put on it
-        grasp = np.concatenate([T0[:3, :3].ravel(order="F"), T0[:3, 3], c_tips.T.ravel(order="F"),
-                                R_tips.ravel(order="F")])
-        tip_planes = np.concatenate([np.stack([N.ravel() for N, _ in planes], axis=1).ravel(order="F"),
-                                     np.stack([h.ravel() for _, h in planes], axis=1).ravel(order="F")])
+        grasp = {"R0_palm_object": T0[:3, :3], "t0_palm_object": T0[:3, 3], "p_object_tips": c_tips.T,
+                 "R_object_tips": R_tips,
+                 "normals_tips": np.stack([N.ravel() for N, _ in planes], axis=1),
+                 "offsets_tips": np.stack([h.ravel() for _, h in planes], axis=1)}
         if self.method == "sd":
             if p_object_tips_goal is None:
                 raise ValueError("method 'sd' needs p_object_tips_goal")
-            target = np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T.ravel(order="F")
-            return self._solve_once(q, c_tips, grasp, tip_planes, target)
+            target = {"p_object_tips_goal": np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T}
+            return self._solve_once(q, c_tips, grasp, target)
         if T_target is None:
             raise ValueError("method 'pose' needs T_target")
         o = self.options
@@ -312,20 +331,19 @@ class InGraspNLP:
         spent = (0.0, 0)
         for fraction in (1.0, 0.5, 0.25):
             T_try = interpolate_pose(T0, T_far, fraction)
-            target = np.concatenate([T_try[:3, :3].ravel(order="F"), T_try[:3, 3]])
-            res = self._solve_once(q, c_tips, grasp, tip_planes, target)
+            res = self._solve_once(q, c_tips, grasp, {"R_target": T_try[:3, :3], "t_target": T_try[:3, 3]})
             spent = (spent[0] + res.solve_time, spent[1] + res.iterations)
             if res.success or res.max_slip <= o.max_slip:
                 break
         return replace(res, solve_time=spent[0], iterations=spent[1])
 
-    def _solve_once(self, q, c_tips, grasp, tip_planes, target) -> InGraspResult:
-        """One move with the parameters in their NLP layout: `grasp` (R0, t0, tip centres, tip
-        orientations), `tip_planes` (normals, offsets) and `target` (pose or goal tip centres)."""
+    def _solve_once(self, q, c_tips, grasp: dict, target: dict) -> InGraspResult:
+        """One move; `grasp` (the start pose, tips and their local planes) and `target` (pose or goal tip
+        centres) are parameter blocks of `layout`."""
         o = self.options
 
         def params(delta):
-            return np.concatenate([grasp, delta, tip_planes, target])
+            return self.layout.pack(**grasp, delta_l=delta, **target)
 
         x_start = np.concatenate([q, np.zeros(6)])
 
