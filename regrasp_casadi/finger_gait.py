@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
+from regrasp_casadi.constants import BETA, ETA
 from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
 from regrasp_casadi.signed_distance import DEFAULT_TAU
 
@@ -35,10 +36,10 @@ _MM = 1e3  # distance-constraint scale: m → mm
 class FingerGaitOptions:
     """Knobs of OPT1 (paper §III-A); SI units."""
 
-    eta: float = 0.01
+    eta: float = ETA
     """η, bound on the fingertip displacement of one gait, m (paper: 1 cm)."""
-    beta: float = 0.001
-    """β, clearance every other sphere of the moving finger keeps from the object, m (paper: 0.1 cm)."""
+    beta: float = BETA
+    """β, clearance every other sphere of the moving finger keeps from the object, m (paper: 1 mm)."""
     surface_tol: float = 5e-5
     """Exact-contact tolerance: re-solve with a corrected offset until |SD_exact(tip) − r| ≤ this, m."""
     max_corrections: int = 4

@@ -46,6 +46,7 @@ from scipy.spatial import cKDTree
 
 from regrasp_casadi import solver as _solver
 from regrasp_casadi import terms
+from regrasp_casadi.constants import BETA, MU
 from regrasp_casadi.errors import GraspError
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.hand import Hand
@@ -85,7 +86,7 @@ _SOLVER_OPTIONS = _solver.SolverOptions(max_iter=400, tol=1e-10, acceptable_tol=
 
 
 # ------------------------------------------------------------------------------------ force closure
-def grasp_quality(grasp: Grasp, mu: float = 0.5) -> float:
+def grasp_quality(grasp: Grasp, mu: float = MU) -> float:
     """Force-closure margin ε of a grasp (see `force_closure_quality`); > 0 means force closure.
 
     Normals: the direction from each contact to its fingertip sphere centre when the grasp has joints
@@ -521,8 +522,8 @@ def generate_grasps(
     n: int = 1,
     seed: int = 0,
     *,
-    mu: float = 0.5,
-    beta: float = 0.001,
+    mu: float = MU,
+    beta: float = BETA,
     T_palm_object_guess: NDArray[np.float64] | None = None,
     max_attempts: int | None = None,
 ) -> list[Grasp]:
@@ -581,8 +582,8 @@ def generate_regrasp_pairs(
     seed: int = 0,
     min_mean_distance: float = 0.03,
     *,
-    mu: float = 0.5,
-    beta: float = 0.001,
+    mu: float = MU,
+    beta: float = BETA,
     max_attempts: int = 40,
 ) -> list[tuple[Grasp, Grasp]]:
     """Pairs (initial grasp, desired grasp) for regrasp planning.

@@ -1,10 +1,12 @@
 """OPT2 — in-grasp manipulation: move the whole hand, and the object with it, keeping the contacts.
 
-Two targets: a desired object pose (`method="pose"`: the SVD form of the paper, and the final in-grasp
-move) or the reachable workspaces of the fingers (`method="sd"`).
+Two targets: a desired object pose (`method="svd"`: the SVD form of the paper, its target pose from
+`svd_target`; also the final in-grasp move, towards the desired pose) or the reachable workspaces of the
+fingers (`method="sd"`).
 
-    >>> nlp = InGraspNLP(hand, obj, "pose")                # built once per (hand, object, method)
-    >>> result = nlp.solve(q, T_palm_object, p_object_tips, T_target=T_palm_object_goal)
+    >>> nlp = InGraspNLP(hand, obj, "svd")                 # built once per (hand, object, method)
+    >>> T_target = svd_target(T_palm_object, contacts_object, goal_contacts_object)
+    >>> result = nlp.solve(q, T_palm_object, p_object_tips, T_target=T_target)
 """
 
 from __future__ import annotations
@@ -20,15 +22,16 @@ from scipy.spatial import ConvexHull
 
 from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
+from regrasp_casadi.constants import BETA, K_ORIENT, K_POS
 from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
 from regrasp_casadi.signed_distance import DEFAULT_TAU
-from regrasp_casadi.transforms import interpolate_pose, log_SO3, make_T
+from regrasp_casadi.transforms import interpolate_pose, inv_T, kabsch, log_SO3, make_T
 
 if TYPE_CHECKING:
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
 
-__all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "workspace_hull"]
+__all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "workspace_hull", "svd_target"]
 
 _log = logging.getLogger(__name__)
 
@@ -39,12 +42,12 @@ _MM = 1e3  # positions in the objective and distance constraints: m → mm
 class InGraspOptions:
     """Knobs of OPT2 (paper §III-B); SI units."""
 
-    k_pos: float = 1000.0
-    """k1, weight of the relaxed-rigidity position term E_pos."""
-    k_orient: float = 10.0
-    """k2, weight of the relaxed-rigidity orientation term E_or."""
-    beta: float = 0.001
-    """β, clearance of every non-tip sphere of the hand from the object, m."""
+    k_pos: float = K_POS
+    """k1, weight of the relaxed-rigidity position term E_pos (paper: 1000)."""
+    k_orient: float = K_ORIENT
+    """k2, weight of the relaxed-rigidity orientation term E_or (paper: 10)."""
+    beta: float = BETA
+    """β, clearance of every non-tip sphere of the hand from the object, m (paper: 1 mm)."""
     max_translation: float = 0.03
     """Trust region: largest object translation per reposing, per axis, m."""
     max_rotation: float = 0.3
@@ -124,6 +127,19 @@ def workspace_hull(hand: Hand, finger: str, n_samples: int = 4000, seed: int = 0
     return WorkspaceHull(normals=n, offsets=h)
 
 
+def svd_target(T_palm_object: ArrayLike, contacts_object: ArrayLike,
+               goal_contacts_object: ArrayLike) -> NDArray[np.float64]:
+    """The target object pose of OPT2's SVD method (paper §III-B), (4, 4) palm frame.
+
+    Kabsch / Besl–McKay gives the rigid transform T_rel (object frame) with X_goal ≈ T_rel · X, X the
+    current contacts (m, 3) and X_goal the goal contacts (m, 3), object frame, m. Moving the object to
+    T* = T_palm_object · T_rel⁻¹ brings each goal contact where its finger's contact is now
+    (T* X_goal ≈ T_palm_object X), so that a finger that keeps its place in the palm reaches its goal.
+    """
+    T_rel = kabsch(contacts_object, goal_contacts_object)  # X_goal ≈ T_rel · X
+    return np.asarray(T_palm_object, float) @ inv_T(T_rel)  # so that o'·X_goal ≈ o·X
+
+
 def _clip_pose(T_from: NDArray, T_to: NDArray, max_translation: float, max_angle: float) -> NDArray:
     """The pose a fraction of the way from `T_from` to `T_to` (translation linear, rotation geodesic)
     such that it is at most `max_translation` (m) and `max_angle` (rad) from `T_from`: the trust region.
@@ -151,7 +167,7 @@ def _param_layout(method: str, k: int, m: int, n_planes: int) -> _solver.ParamLa
         ("normals_tips", (3 * n_planes, m)),  # local planes near each tip (columns, as
         ("offsets_tips", (n_planes, m)),  # terms.local_signed_distance reads them), object frame
     ]
-    if method == "pose":
+    if method == "svd":
         blocks += [("R_target", (3, 3)), ("t_target", (3,))]  # target object pose, palm frame
     else:
         blocks += [("p_object_tips_goal", (3, m))]  # goal tip-sphere centres (columns), object frame, m
@@ -198,11 +214,11 @@ class InGraspNLP:
     R_{O,r} the tip orientations in the object frame at the start,
     ``E_pos = Σ_r ||FK_r(Θ) − (R c_r + t)||²`` (mm²) and ``E_or = Σ_r ||R_r(Θ) − R R_{O,r}||_F²``.
 
-    * ``method="pose"`` (the paper's SVD form, and the final in-grasp move):
+    * ``method="svd"`` (the paper's SVD form, and the final in-grasp move):
       ``E_des = ||t − t*||² + (ℓ²/2) ||R − R*||_F²`` (mm², ℓ the object's radius in mm), with the target
-      pose (R*, t*) passed as a parameter; the planner computes it by Kabsch / Besl–McKay. A target
-      beyond the trust region is first moved onto it (along the geodesic), so E_des cannot outpull the
-      relaxed rigidity.
+      pose (R*, t*) passed as a parameter: `svd_target` (Kabsch / Besl–McKay), or the desired pose.
+      A target beyond the trust region is first moved onto it (along the geodesic), so E_des cannot
+      outpull the relaxed rigidity.
     * ``method="sd"``: ``E_des = Σ_r max(0, SD(R g_r + t, R_r) + m)`` (mm), g_r the goal tip centres in
       the object frame, R_r the finger's reachable-workspace hull and m ≥ 0 a margin (``sd_margin``; the
       paper's form is m = 0); max and SD are smoothed (``tau_hull``).
@@ -216,10 +232,10 @@ class InGraspNLP:
 
     _n_builds = 0
 
-    def __init__(self, hand: Hand, obj: ObjectModel, method: Literal["pose", "sd"] = "pose",
+    def __init__(self, hand: Hand, obj: ObjectModel, method: Literal["svd", "sd"] = "svd",
                  options: InGraspOptions | None = None):
-        if method not in ("pose", "sd"):
-            raise ValueError(f"method must be 'pose' or 'sd', got {method!r}")
+        if method not in ("svd", "sd"):
+            raise ValueError(f"method must be 'svd' or 'sd', got {method!r}")
         InGraspNLP._n_builds += 1
         self.hand, self.obj, self.method = hand, obj, method
         self.options = o = options or InGraspOptions()
@@ -245,7 +261,7 @@ class InGraspNLP:
         # objective
         tips_palm = hand.tip_positions_function()(q)  # (3, m)
         e_pos, e_or = _relaxed_rigidity(hand, q, tips_palm, R, t, P["p_object_tips"], P["R_object_tips"])
-        if method == "pose":
+        if method == "svd":
             e_des = ca.sumsqr(_MM * (t - P["t_target"])) + 0.5 * ell_mm**2 * terms.rotation_error_sq(
                 R, P["R_target"])
         else:
@@ -302,10 +318,10 @@ class InGraspNLP:
               T_target: ArrayLike | None = None,
               p_object_tips_goal: ArrayLike | None = None) -> InGraspResult:
         """Repose the object from the grasp (`q` (n,), `T_palm_object` (4, 4)) whose tip-sphere centres are
-        `p_object_tips` (m, 3) (object frame, m), towards `T_target` (4, 4) (method "pose") or so that the
+        `p_object_tips` (m, 3) (object frame, m), towards `T_target` (4, 4) (method "svd") or so that the
         goal tip centres `p_object_tips_goal` (m, 3) enter the fingers' workspaces (method "sd").
 
-        Method "pose": a target beyond the trust region is moved onto it; if the tips then slide more than
+        Method "svd": a target beyond the trust region is moved onto it; if the tips then slide more than
         `max_slip` (fingers that cannot follow a large move), the move is tried again towards a target
         half and a quarter as far."""
         q = np.asarray(q, float)
@@ -324,7 +340,7 @@ class InGraspNLP:
             target = {"p_object_tips_goal": np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T}
             return self._solve_once(q, c_tips, grasp, target)
         if T_target is None:
-            raise ValueError("method 'pose' needs T_target")
+            raise ValueError("method 'svd' needs T_target")
         o = self.options
         T_far = _clip_pose(T0, np.asarray(T_target, float), o.max_translation,
                            2.0 * np.arctan(o.max_rotation))

@@ -12,17 +12,18 @@ import logging
 import time
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
-from typing import TYPE_CHECKING, Literal
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.constants import ZETA
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
-from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions
+from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.stability import holding_quality, torque_reference
-from regrasp_casadi.transforms import inv_T, kabsch, rotation_angle
+from regrasp_casadi.transforms import rotation_angle
 
 if TYPE_CHECKING:
     from regrasp_casadi.grasp import Grasp
@@ -38,16 +39,18 @@ ProgressCallback = Callable[[int, int, float], None]
 
 @dataclass(frozen=True)
 class PlannerOptions:
-    """Options of `plan_regrasp`; the paper's values are the defaults (SI units)."""
+    """Options of `plan_regrasp`; the paper's values are the defaults (SI units).
+
+    The knobs of the two NLPs are their own options, held here (`finger_gait`, `in_grasp`); the common
+    ones can be given to `plan_regrasp` / `with_overrides` by name (``eta=0.008``, ``beta=...``), see
+    `OVERRIDES`.
+    """
 
     method: Literal["svd", "sd"] = "svd"
-    """OPT2's E_des: "svd" (target pose by Kabsch) or "sd" (distance to the workspace hulls)."""
-    zeta: float = 0.006
+    """OPT2's E_des: "svd" (target pose by Kabsch, `in_grasp.svd_target`) or "sd" (distance to the
+    workspace hulls)."""
+    zeta: float = ZETA
     """ζ, threshold on the largest contact error, m (paper: 6 mm)."""
-    eta: float = 0.01
-    """η, largest fingertip displacement of one gait, m (paper: 1 cm)."""
-    beta: float = 0.001
-    """β, clearance of the hand's non-tip spheres from the object, m (paper: 0.1 cm)."""
     max_iters: int = 50
     """Largest number of gait/reposing iterations (paper: 50)."""
     gait: tuple[str, ...] | None = None
@@ -57,10 +60,6 @@ class PlannerOptions:
     P, not yet moved in this iteration, whose lift leaves the other fingers with the largest
     force-closure margin (`stability.holding_quality`, μ = 0.5) — an answer to the paper's open
     problems of gait order and grasp stability."""
-    k_pos: float = 1000.0
-    """k1, weight of the relaxed-rigidity position term."""
-    k_orient: float = 10.0
-    """k2, weight of the relaxed-rigidity orientation term."""
     final_move: bool = True
     """Finish with in-grasp moves to the desired object pose (Algorithm 1, last lines)."""
     max_final_moves: int = 6
@@ -77,12 +76,51 @@ class PlannerOptions:
     """After this many iterations without progress the plan stops with status "stalled"."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
-    tau: float | None = None
-    """Temperature of the smooth signed distance (None: the object's default), m."""
-    surface_tol: float = 5e-5
-    """Exact-contact tolerance of OPT1's correction loop, m."""
-    print_level: int = 0
-    """IPOPT print level (0 = quiet)."""
+    finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)
+    """OPT1's options (η, β, exact-contact tolerance, ...)."""
+    in_grasp: InGraspOptions = field(default_factory=InGraspOptions)
+    """OPT2's options (k1, k2, β, trust region, ...)."""
+
+    OVERRIDES: ClassVar[dict[str, tuple[str, ...]]] = {
+        "eta": ("finger_gait",),
+        "surface_tol": ("finger_gait",),
+        "k_pos": ("in_grasp",),
+        "k_orient": ("in_grasp",),
+        "beta": ("finger_gait", "in_grasp"),
+        "tau": ("finger_gait", "in_grasp"),
+        "print_level": ("finger_gait", "in_grasp"),
+    }
+    """Keyword overrides that set fields of the NLPs' options: name → the sub-options that get it."""
+
+    def __post_init__(self) -> None:
+        if self.gait is not None:  # a list from the CLI or JSON: stored as a tuple
+            object.__setattr__(self, "gait", tuple(self.gait))
+
+    def with_overrides(self, **overrides) -> PlannerOptions:
+        """A copy with `overrides` applied: this class's own fields (``method="sd"``, ``max_iters=5``,
+        ``finger_gait=FingerGaitOptions(...)``) first, then the names of `OVERRIDES` (``eta=0.008``),
+        which set that field of each sub-options listed there.
+
+        Raises:
+            TypeError: for a name that is neither a field nor in `OVERRIDES`.
+        """
+        own = {k: v for k, v in overrides.items() if k not in self.OVERRIDES}
+        unknown = sorted(set(own) - {f.name for f in fields(self)})
+        if unknown:
+            raise TypeError(f"unknown planner options {unknown}; the options are "
+                            f"{[f.name for f in fields(self)] + list(self.OVERRIDES)}")
+        options = replace(self, **own)
+        for name, value in overrides.items():
+            for sub in self.OVERRIDES.get(name, ()):
+                options = replace(options, **{sub: replace(getattr(options, sub), **{name: value})})
+        return options
+
+    def to_dict(self) -> dict:
+        """The options as plain data (nested dicts for the NLPs' options; the gait as a list or None),
+        as written into `Plan.options`."""
+        opts = asdict(self)
+        opts["gait"] = list(opts["gait"]) if opts["gait"] is not None else None
+        return opts
 
 
 def gait_pattern(hand: Hand, contacts_object: NDArray[np.float64],
@@ -140,11 +178,8 @@ class _Run:
         self.solves = {"opt1": 0, "opt2": 0}
         self.gait: tuple[str, ...] = tuple(hand.fingers)
         self.com, self.length = torque_reference(obj.mesh)  # of the stability-aware gait order
-        o = options
-        self.gait_options = FingerGaitOptions(eta=o.eta, beta=o.beta, surface_tol=o.surface_tol, tau=o.tau,
-                                              print_level=o.print_level)
-        self.in_grasp_options = InGraspOptions(k_pos=o.k_pos, k_orient=o.k_orient, beta=o.beta, tau=o.tau,
-                                               print_level=o.print_level)
+        self.gait_options = options.finger_gait
+        self.in_grasp_options = options.in_grasp
 
     def gait_nlp(self, finger: str) -> FingerGaitNLP:
         key = ("gait", id(self.hand), id(self.obj), finger, self.gait_options)
@@ -200,9 +235,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         so far.
     """
     t_start = time.perf_counter()
-    options = replace(options or PlannerOptions(), **overrides)
-    if options.gait is not None:
-        options = replace(options, gait=tuple(options.gait))
+    options = (options or PlannerOptions()).with_overrides(**overrides)
     hand, obj = grasp0.hand, grasp0.obj
     goal_contacts = np.asarray(grasp_goal.contacts_object, dtype=float)
     goal_T = np.asarray(grasp_goal.T_palm_object, dtype=float)
@@ -213,8 +246,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         timing = dict(run.timing) if run else {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0}
         timing["total"] = time.perf_counter() - t_start
         timing["other"] = max(0.0, timing["total"] - timing["build"] - timing["opt1"] - timing["opt2"])
-        opts = asdict(options)
-        opts["gait"] = list(opts["gait"]) if opts["gait"] is not None else None
+        opts = options.to_dict()
         if run is not None:
             opts["gait_used"] = list(run.gait)
             opts["solves"] = dict(run.solves)
@@ -234,7 +266,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     step = run.add_step("initial", None, q, T, "", 0.0)
     run.gait = options.gait or gait_pattern(hand, step.contacts_object, goal_contacts)
     gait_nlps = {f: run.gait_nlp(f) for f in run.gait}
-    pose_nlp = run.in_grasp_nlp("pose")  # SVD reposing, stall escape and final moves
+    pose_nlp = run.in_grasp_nlp("svd")  # SVD reposing, stall escape and final moves
     repose_nlp = pose_nlp if options.method == "svd" else run.in_grasp_nlp("sd")
     for nlp in [*gait_nlps.values(), pose_nlp, repose_nlp]:
         nlp.reset()  # same input, same plan: no warm start carried over from another plan
@@ -273,8 +305,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
             if stalled >= options.stall_escape:  # escape: repose towards the desired object pose
                 nlp, target = pose_nlp, {"T_target": goal_T}
             elif options.method == "svd":
-                T_rel = kabsch(run.steps[-1].contacts_object, goal_contacts)  # X_goal ≈ T_rel · X
-                target = {"T_target": T @ inv_T(T_rel)}  # so that o'·X_goal ≈ o·X
+                target = {"T_target": svd_target(T, run.steps[-1].contacts_object, goal_contacts)}
             else:
                 target = {"p_object_tips_goal": goal_tips}
             res2 = nlp.solve(q, T, tips, **target)
@@ -353,6 +384,8 @@ def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> s
         unknown = [f for f in options.gait if f not in grasp0.hand.fingers]
         if unknown:
             return f"gait names unknown fingers {unknown}; the hand has {list(grasp0.hand.fingers)}"
-    if not (options.zeta > 0 and options.eta > 0 and options.beta >= 0 and options.max_iters >= 0):
+    gait, in_grasp = options.finger_gait, options.in_grasp
+    if not (options.zeta > 0 and gait.eta > 0 and gait.beta >= 0 and in_grasp.beta >= 0
+            and options.max_iters >= 0):
         return "zeta and eta must be positive, beta and max_iters non-negative"
     return ""

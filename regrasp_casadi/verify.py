@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from regrasp_casadi import constants
 from regrasp_casadi.problem import plan_models
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
@@ -63,10 +64,10 @@ EXACT_TOL = 1e-9
 STEP_TOL = 1e-6
 """Slack on the gait step bound `eta`, m."""
 
-DEFAULT_ETA = 0.01
+DEFAULT_ETA = constants.ETA
 """Gait step bound used when the plan's options do not say (DESIGN.md: 1 cm), m."""
 
-DEFAULT_ZETA = 0.006
+DEFAULT_ZETA = constants.ZETA
 """Convergence threshold used when the plan's options do not say (DESIGN.md: 6 mm), m."""
 
 

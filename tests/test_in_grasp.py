@@ -21,7 +21,7 @@ def problem():
 
 @pytest.fixture(scope="module")
 def pose_nlp(problem):
-    return InGraspNLP(problem.hand, problem.obj, "pose")
+    return InGraspNLP(problem.hand, problem.obj, "svd")
 
 
 def _clearance(problem, q, T):

@@ -5,13 +5,14 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from dataclasses import asdict, replace
+from dataclasses import replace
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pytest
 
+from regrasp_casadi.finger_gait import FingerGaitOptions
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.plan import Plan
 from regrasp_casadi.planner import PlannerOptions, gait_pattern, plan_regrasp
@@ -181,10 +182,23 @@ def _gait_step_lengths(hand, plan) -> list[float]:
     return lengths
 
 
+def test_overrides_reach_the_nlp_options():
+    o = PlannerOptions().with_overrides(eta=0.008, beta=0.002, k_pos=50.0, method="sd", gait=["index"])
+    assert (o.finger_gait.eta, o.finger_gait.beta, o.in_grasp.beta, o.in_grasp.k_pos) == (0.008, 0.002,
+                                                                                          0.002, 50.0)
+    assert o.in_grasp.k_orient == 10.0 and o.method == "sd" and o.gait == ("index",)
+    assert PlannerOptions().finger_gait == FingerGaitOptions(eta=0.01, beta=0.001)  # the paper's η, β
+    assert (PlannerOptions().zeta, PlannerOptions().in_grasp.k_pos) == (0.006, 1000.0)  # ζ, k1
+    with pytest.raises(TypeError, match="max_iter"):
+        PlannerOptions().with_overrides(max_iter=3)
+
+
 def test_options_are_recorded_by_value_and_take_effect(box, tmp_path):
-    given = PlannerOptions(eta=0.008, zeta=0.005, gait=("thumb", "index", "middle", "ring"))
+    given = PlannerOptions(zeta=0.005, gait=("thumb", "index", "middle", "ring")).with_overrides(eta=0.008)
     plan = plan_regrasp(box.grasp0, box.grasp_goal, options=given, max_iters=1)
-    expected = {**asdict(given), "max_iters": 1, "gait": ["thumb", "index", "middle", "ring"]}
+    expected = {**given.to_dict(), "max_iters": 1}
+    assert expected["finger_gait"]["eta"] == 0.008
+    assert expected["gait"] == ["thumb", "index", "middle", "ring"]
     plan.save(tmp_path / "plan.json")
     for recorded in (plan.options, Plan.load(tmp_path / "plan.json").options):
         assert {k: recorded[k] for k in expected} == expected
