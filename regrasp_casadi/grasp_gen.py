@@ -183,18 +183,12 @@ class _GraspNLP:
 _STATS: collections.Counter = collections.Counter()
 """Outcome counts of generation attempts in this process (diagnostics)."""
 
-_NLP_CACHE: dict[tuple[int, int, float], _GraspNLP] = {}
+_NLP_CACHE = _solver.NLPCache(max_size=8)
+"""The grasp NLPs, one per (hand, object, β)."""
 
 
 def _grasp_nlp(hand: Hand, obj: ObjectModel, beta: float) -> _GraspNLP:
-    key = (id(hand), id(obj), float(beta))
-    nlp = _NLP_CACHE.get(key)
-    if nlp is None or nlp.hand is not hand or nlp.obj is not obj:
-        if len(_NLP_CACHE) >= 8:
-            _NLP_CACHE.pop(next(iter(_NLP_CACHE)))
-        nlp = _GraspNLP(hand, obj, beta)
-        _NLP_CACHE[key] = nlp
-    return nlp
+    return _NLP_CACHE.get("grasp_synthesis", hand, obj, float(beta), lambda: _GraspNLP(hand, obj, beta))
 
 
 # ------------------------------------------------------------------------------ sampling helpers

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import logging
 import time
-from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,6 +21,7 @@ from regrasp_casadi.constants import ZETA
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
 from regrasp_casadi.plan import Plan, PlanStep
+from regrasp_casadi.solver import NLPCache
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import rotation_angle
 
@@ -30,11 +30,12 @@ if TYPE_CHECKING:
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
 
-__all__ = ["PlannerOptions", "plan_regrasp", "gait_pattern", "clear_nlp_cache"]
+__all__ = ["PlannerOptions", "plan_regrasp", "gait_pattern", "clear_nlp_cache", "NLPCache"]
 
 _log = logging.getLogger(__name__)
 
 ProgressCallback = Callable[[int, int, float], None]
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -141,57 +142,48 @@ def gait_pattern(hand: Hand, contacts_object: NDArray[np.float64],
     return tuple(reversed(forward))
 
 
-# ---------------------------------------------------------------------------------------------------------
-# NLP cache: each NLP is built once per (hand, object, finger/method, options) and reused across plans.
-
-_CACHE: OrderedDict[tuple, object] = OrderedDict()
-_CACHE_SIZE = 64
+_DEFAULT_CACHE = NLPCache(max_size=64)
+"""The process-wide NLP cache of `plan_regrasp` calls that do not pass their own."""
 
 
 def clear_nlp_cache() -> None:
-    """Forget every cached NLP (they are rebuilt on the next plan)."""
-    _CACHE.clear()
-
-
-def _cached(key: tuple, build: Callable[[], object]) -> tuple[object, float]:
-    """The cached NLP for `key` (built on a miss) and the build time spent now, s."""
-    if key in _CACHE:
-        _CACHE.move_to_end(key)
-        return _CACHE[key], 0.0
-    t0 = time.perf_counter()
-    nlp = build()
-    _CACHE[key] = nlp
-    while len(_CACHE) > _CACHE_SIZE:
-        _CACHE.popitem(last=False)
-    return nlp, time.perf_counter() - t0
+    """Forget every NLP of the process-wide cache (they are rebuilt on the next plan)."""
+    _DEFAULT_CACHE.clear()
 
 
 class _Run:
     """State of one planning run: the steps so far, timing, and the NLPs it uses."""
 
     def __init__(self, hand: Hand, obj: ObjectModel, goal_contacts: NDArray, goal_tips: NDArray,
-                 options: PlannerOptions):
-        self.hand, self.obj, self.options = hand, obj, options
+                 options: PlannerOptions, cache: NLPCache):
+        self.hand, self.obj, self.options, self.cache = hand, obj, options, cache
         self.goal_contacts, self.goal_tips = goal_contacts, goal_tips
         self.steps: list[PlanStep] = []
         self.timing = {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0, "total": 0.0}
         self.solves = {"opt1": 0, "opt2": 0}
         self.gait: tuple[str, ...] = tuple(hand.fingers)
         self.com, self.length = torque_reference(obj.mesh)  # of the stability-aware gait order
-        self.gait_options = options.finger_gait
-        self.in_grasp_options = options.in_grasp
 
     def gait_nlp(self, finger: str) -> FingerGaitNLP:
-        key = ("gait", id(self.hand), id(self.obj), finger, self.gait_options)
-        nlp, dt = _cached(key, lambda: FingerGaitNLP(self.hand, self.obj, finger, self.gait_options))
-        self.timing["build"] += dt
-        return nlp  # type: ignore[return-value]
+        o = self.options.finger_gait
+        return self.cache.get("finger_gait", self.hand, self.obj, (finger, o),
+                              self._timed(lambda: FingerGaitNLP(self.hand, self.obj, finger, o)))
 
     def in_grasp_nlp(self, method: str) -> InGraspNLP:
-        key = ("in_grasp", id(self.hand), id(self.obj), method, self.in_grasp_options)
-        nlp, dt = _cached(key, lambda: InGraspNLP(self.hand, self.obj, method, self.in_grasp_options))
-        self.timing["build"] += dt
-        return nlp  # type: ignore[return-value]
+        o = self.options.in_grasp
+        return self.cache.get("in_grasp", self.hand, self.obj, (method, o),
+                              self._timed(lambda: InGraspNLP(self.hand, self.obj, method, o)))
+
+    def _timed(self, build: Callable[[], T]) -> Callable[[], T]:
+        """`build`, adding its time to the run's build time (a cache hit adds nothing)."""
+
+        def timed_build() -> T:
+            t0 = time.perf_counter()
+            nlp = build()
+            self.timing["build"] += time.perf_counter() - t0
+            return nlp
+
+        return timed_build
 
     def most_stable_gait(self, q: NDArray, T_palm_object: NDArray, todo: list[str]) -> str:
         """Remove and return the finger of `todo` whose lift leaves the best-held grasp."""
@@ -218,7 +210,8 @@ class _Run:
 
 
 def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | None = None,
-                 progress: ProgressCallback | None = None, **overrides) -> Plan:
+                 progress: ProgressCallback | None = None, cache: NLPCache | None = None,
+                 **overrides) -> Plan:
     """Plan an in-hand regrasp from `grasp0` to `grasp_goal` (Algorithm 1).
 
     Args:
@@ -227,6 +220,8 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         options: a `PlannerOptions`; keyword `overrides` replace its fields (e.g. ``method="sd"``).
         progress: optional callable ``progress(iteration, max_iters, average_error_m)`` called after
             every iteration.
+        cache: where the NLPs are kept between plans (default: the process-wide cache that
+            `clear_nlp_cache` clears).
 
     Returns:
         A `Plan` whose `status` says why it stopped: "converged", "iteration_limit", "stalled" (no
@@ -260,7 +255,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         return make_plan(None, "invalid_input", problems, 0, [])
 
     goal_tips = np.asarray(grasp_goal.tip_centers_object, dtype=float)
-    run = _Run(hand, obj, goal_contacts, goal_tips, options)
+    run = _Run(hand, obj, goal_contacts, goal_tips, options, _DEFAULT_CACHE if cache is None else cache)
     q = np.asarray(grasp0.q, dtype=float)
     T = np.asarray(grasp0.T_palm_object, dtype=float)
     step = run.add_step("initial", None, q, T, "", 0.0)

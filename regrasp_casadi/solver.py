@@ -1,9 +1,9 @@
 """The one home of solving: the NLP backend and its options, the parameter layout, a guarded solve with
 its success test, the warm-start policy and the exact-offset correction loop.
 
-Every NLP of the package is built by `build_solver`, so swapping IPOPT for another CasADi `nlpsol`
-plugin is a change of this file only (`BACKEND` and `backend_options`). A failed solve is a status, not
-an exception: `solve` maps the backend's `return_status` into `SolveResult`.
+Every NLP of the package is built by `build_solver` (and kept in an `NLPCache`), so swapping IPOPT for
+another CasADi `nlpsol` plugin is a change of this file only (`BACKEND` and `backend_options`). A failed
+solve is a status, not an exception: `solve` maps the backend's `return_status` into `SolveResult`.
 
     >>> layout = ParamLayout([("R_palm_object", (3, 3)), ("t_palm_object", (3,))])
     >>> p_sym, blocks = layout.symbols()                       # CasADi symbols, one per block
@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Sequence
+from collections import OrderedDict
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 import casadi as ca
 import numpy as np
@@ -38,6 +39,7 @@ __all__ = [
     "Correction",
     "correct_offsets",
     "clipped_if_finite",
+    "NLPCache",
 ]
 
 _log = logging.getLogger(__name__)
@@ -381,3 +383,63 @@ def correct_offsets(
         offsets = new_offsets(x, evaluation, offsets)
     return Correction(x=x, evaluation=evaluation, result=res, converged=converged, usable=usable,
                       solves=solves, iterations=iterations, solve_time=solve_time)
+
+
+# ------------------------------------------------------------------------------------------ NLP cache
+NLP = TypeVar("NLP")
+
+
+class _Same:
+    """A key part that compares by identity and holds its object, so that while the key is cached the
+    object stays alive and its id cannot be reused by another."""
+
+    __slots__ = ("obj",)
+
+    def __init__(self, obj: Any):
+        self.obj = obj
+
+    def __hash__(self) -> int:
+        return id(self.obj)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Same) and other.obj is self.obj
+
+
+class NLPCache:
+    """Built NLPs, reused across plans: one per (kind, hand, object, key), the least recently used
+    dropped beyond `max_size`.
+
+    The hand and object are part of the key by identity (a new model is a new entry, even when equal
+    to a cached one) and are held by the cache until their entries are dropped or the cache is cleared.
+
+        >>> cache = NLPCache()
+        >>> nlp = cache.get("finger_gait", hand, obj, ("index", options), lambda: FingerGaitNLP(...))
+        >>> cache.clear()
+    """
+
+    def __init__(self, max_size: int = 64):
+        self.max_size = int(max_size)
+        """Largest number of NLPs kept."""
+        self.builds = 0
+        """Number of NLPs this cache has built."""
+        self._nlps: OrderedDict[tuple, Any] = OrderedDict()
+
+    def get(self, kind: str, hand: Any, obj: Any, key: Hashable, build: Callable[[], NLP]) -> NLP:
+        """The cached NLP of `kind` for (`hand`, `obj`, `key`); on a miss `build()` makes it."""
+        full_key = (kind, _Same(hand), _Same(obj), key)
+        if full_key in self._nlps:
+            self._nlps.move_to_end(full_key)
+            return self._nlps[full_key]
+        nlp = build()
+        self.builds += 1
+        self._nlps[full_key] = nlp
+        while len(self._nlps) > self.max_size:
+            self._nlps.popitem(last=False)
+        return nlp
+
+    def clear(self) -> None:
+        """Forget every NLP (and release the hands and objects they were built for)."""
+        self._nlps.clear()
+
+    def __len__(self) -> int:
+        return len(self._nlps)

@@ -15,7 +15,7 @@ import pytest
 from regrasp_casadi.finger_gait import FingerGaitOptions
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.plan import Plan
-from regrasp_casadi.planner import PlannerOptions, gait_pattern, plan_regrasp
+from regrasp_casadi.planner import NLPCache, PlannerOptions, gait_pattern, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.transforms import inv_T, transform_points
 from regrasp_casadi.verify import verify
@@ -67,6 +67,14 @@ def test_no_rebuild_inside_a_plan(monkeypatch):
     assert len(second.steps) > 5
     assert len(built) == n_first, f"the second plan built {built[n_first:]}"
     assert second.timing["build"] == 0.0
+
+
+def test_a_plan_keeps_its_nlps_in_the_cache_it_is_given(box):
+    cache = NLPCache()
+    plan_regrasp(box.grasp0, box.grasp_goal, method="sd", max_iters=1, cache=cache)
+    assert cache.builds == len(box.hand.fingers) + 2  # OPT1 per finger, OPT2 "sd" and "svd" (final move)
+    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="sd", max_iters=1, cache=cache)
+    assert cache.builds == len(box.hand.fingers) + 2 and plan.timing["build"] == 0.0
 
 
 def test_same_input_same_plan(box):
