@@ -13,21 +13,10 @@ How (one attempt): sample an object pose in front of the palm (an orientation al
 oriented bounding box plus a random tilt, a random position where the fingertip workspaces reach it),
 pick one contact target per finger among sampled surface points that the finger can reach (tip
 workspace samples over the joint limits), with the fingers on one side and the thumb (`hand.thumb`)
-opposite them, keeping only target sets that are themselves in force closure, then solve with IPOPT
-
-    min_{q, δt, a}  Σ_r ||R(a)ᵀ(FK_r(q) − t) − (x_r + r_tip n_r)||² / s² + w_q ||q − q_ref||²
-                    + w_t ||δt||² / s² + w_a ||a||²
-    s.t.  sd(R(a)ᵀ(FK_r(q) − t)) + δ_r = r_tip                       (each fingertip r)
-          sd_c(R(a)ᵀ(c_k(q) − t)) + δ_k − ρ_k ≥ β + margin           (each non-tip sphere k)
-          q_lower ≤ q ≤ q_upper
-
-with t = t₀ + δt, R(a) = R₀·Cay(a) (Cayley map), sd the smooth signed distance of `ObjectModel`
-(τ = 2 mm), sd_c its coarse clearance variant (≤ 16 planes per piece) and δ = d_exact − sd at the previous
-solution (a local correction). Later rounds re-centre the pose prior and q_ref on the solution with large
-weights (a proximal step) and re-solve; once the spheres are clear and the tips within 2 mm, Newton
-steps on the exact distance (each finger's tip moved along its contact normal by a damped least-norm
-joint step) put the tips on the surface. The NLP is built once per (hand, object, β) and re-solved from
-different seeds. Same seed → same grasps (for the same hand and object models).
+opposite them, keeping only target sets that are themselves in force closure, then solve the grasp NLP
+of `grasp_nlp` (tips on the smooth surface, other spheres clear, with exact-distance corrections and a
+final Newton polish of the tips on the exact distance). The NLP is built once per (hand, object, β) and
+re-solved from different seeds. Same seed → same grasps (for the same hand and object models).
 
     >>> grasps = generate_grasps(Hand.allegro_right(), ObjectModel.box((0.06, 0.06, 0.12)), n=3, seed=0)
     >>> pairs = generate_regrasp_pairs(hand, obj, n_pairs=2, seed=0)
@@ -39,16 +28,14 @@ import collections
 import logging
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from regrasp_casadi import solver as _solver
-from regrasp_casadi import terms
 from regrasp_casadi.constants import BETA, MU
 from regrasp_casadi.errors import GraspError
 from regrasp_casadi.grasp import Grasp
+from regrasp_casadi.grasp_nlp import SURFACE_TOL, GraspNLP, grasp_nlp, solve_exact
 from regrasp_casadi.hand import Hand
 from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.stability import FRICTION_EDGES, force_closure_quality, torque_reference
@@ -64,25 +51,14 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-SURFACE_TOL = 1e-4
-"""Allowed |exact distance of a tip centre − tip radius| of a generated grasp, m (0.1 mm)."""
 _N_WORKSPACE = 20000  # joint samples for the fingertip workspaces
 _N_SURFACE = 3000  # surface samples for contact targets
 _REACH_TOL = 0.006  # a target is reachable if a workspace sample lies within this distance, m
 _TIP_SPACING = 0.03  # minimum distance between two fingertip targets, m
-_MARGIN = 5e-4  # extra clearance demanded of the smooth distance of non-tip spheres, m
-_SCALE = 0.01  # length scale of the objective, m
 _MIN_QUALITY = 1e-3  # force-closure margin a generated grasp must exceed
 _CONE_SHRINK = float(np.cos(np.pi / FRICTION_EDGES))
 """Generated grasps are tested with μ·cos(π/8): the circle of that radius lies inside every 8-edge
 polygon of radius μ, so the grasp is in force closure however the linearised cones are turned."""
-_CORRECTION_ROUNDS = 5
-_CLEARANCE_PLANES = 16  # planes per piece of the coarse distance used for the non-tip spheres
-_TAU = 2e-3  # smoothing temperature of the NLP's distance, m (the exact-minus-smooth offset removes its bias)
-_SOLVER_OPTIONS = _solver.SolverOptions(max_iter=400, tol=1e-10, acceptable_tol=None, acceptable_iter=None,
-                                        constr_viol_tol=1e-9, warm_start=False, bound_relax_factor=0.0,
-                                        linear_solver=None)
-"""Tight tolerances and exact bounds: a generated grasp is checked to 0.1 mm with the exact distance."""
 
 
 # ------------------------------------------------------------------------------------ force closure
@@ -112,83 +88,8 @@ def grasp_quality(grasp: Grasp, mu: float = MU) -> float:
     return force_closure_quality(c, normals, mu, com, length)
 
 
-# ------------------------------------------------------------------------------------------- NLP
-class _GraspNLP:
-    """The grasp-synthesis NLP of the module docstring, built once per (hand, object, β)."""
-
-    def __init__(self, hand: Hand, obj: ObjectModel, beta: float):
-        self.hand, self.obj, self.beta = hand, obj, float(beta)
-        n, m = hand.n_joints, len(hand.fingers)
-        self.radii = np.asarray(hand.sphere_radii(None, include_tip=False), float)
-        k = len(self.radii)
-        self.n, self.m, self.k = n, m, k
-        # decision variables
-        q = ca.MX.sym("q", n)
-        dt = ca.MX.sym("dt", 3)
-        a = ca.MX.sym("a", 3)
-        x = ca.vertcat(q, dt, a)
-        # parameters
-        self.layout = _solver.ParamLayout([
-            ("R0", (3, 3)),  # pose prior: object rotation, palm frame
-            ("t0", (3,)),  # pose prior: object position, palm frame, m
-            ("targets", (3, m)),  # tip-centre targets (columns), object frame, m
-            ("delta_tip", (m,)),  # exact-distance offsets of the tips, m
-            ("delta_sph", (k,)),  # exact-distance offsets of the non-tip spheres, m
-            ("q_ref", (n,)),  # joint prior, rad
-            ("weights", (4,)),  # of the target, joint, translation and rotation terms
-        ])
-        p, P = self.layout.symbols(ca.MX)
-        R0, t0, targets, q_ref, weights = P["R0"], P["t0"], P["targets"], P["q_ref"], P["weights"]
-        R = ca.mtimes(R0, terms.cayley_rotation(a))
-        t = t0 + dt
-        tips_palm = hand.tip_positions_function()(q)
-        tips_obj = ca.mtimes(R.T, tips_palm - ca.repmat(t, 1, m))
-        sph_palm = hand.sphere_centers_function(None, include_tip=False)(q)
-        sph_obj = ca.mtimes(R.T, sph_palm - ca.repmat(t, 1, k))
-        sd_tip = obj.signed_distance_map_function(m, _TAU)(tips_obj)
-        sd_sph = obj.clearance_distance_function(_CLEARANCE_PLANES, _TAU).map(k)(sph_obj)
-        # objective
-        f = (weights[0] * ca.sumsqr(tips_obj - targets) / _SCALE**2
-             + weights[1] * ca.sumsqr(q - q_ref)
-             + weights[2] * ca.sumsqr(dt) / _SCALE**2
-             + weights[3] * ca.sumsqr(a))
-        # constraints
-        g_tip = sd_tip.T + P["delta_tip"] - hand.tip_radius
-        g_sph = sd_sph.T + P["delta_sph"] - ca.DM(self.radii)
-        g = ca.vertcat(g_tip, g_sph)
-        # bounds
-        self.lbg = np.concatenate([np.zeros(m), np.full(k, self.beta + _MARGIN)])
-        self.ubg = np.concatenate([np.zeros(m), np.full(k, np.inf)])
-        self.lbx = np.concatenate([hand.q_lower, np.full(3, -0.05), np.full(3, -0.5)])
-        self.ubx = np.concatenate([hand.q_upper, np.full(3, 0.05), np.full(3, 0.5)])
-        # solver
-        nlp = {"x": x, "p": p, "f": f, "g": g}
-        self.solver = _solver.build_solver("grasp_synthesis", nlp, _SOLVER_OPTIONS)
-        self.bounds = _solver.Bounds(self.lbx, self.ubx, self.lbg, self.ubg)
-        self.eval_points = ca.Function("grasp_points", [x, p], [tips_obj, sph_obj, sd_tip, sd_sph])
-
-    def pack(self, R0, t0, targets, delta_tip, delta_sph, q_ref, weights) -> NDArray[np.float64]:
-        """p of a solve; `targets` (m, 3) tip-centre targets, object frame, m (rows per finger)."""
-        return self.layout.pack(R0=R0, t0=t0, targets=np.asarray(targets).T, delta_tip=delta_tip,
-                                delta_sph=delta_sph, q_ref=q_ref, weights=weights)
-
-    def pose(self, x, R0, t0) -> NDArray[np.float64]:
-        C = np.asarray(terms.cayley_rotation(ca.DM(x[self.n + 3:])))
-        return make_T(R0 @ C, t0 + x[self.n:self.n + 3])
-
-    def solve(self, x0, p) -> _solver.SolveResult:
-        return _solver.solve(self.solver, x0=x0, p=p, **self.bounds.kwargs())
-
-
 _STATS: collections.Counter = collections.Counter()
 """Outcome counts of generation attempts in this process (diagnostics)."""
-
-_NLP_CACHE = _solver.NLPCache(max_size=8)
-"""The grasp NLPs, one per (hand, object, β)."""
-
-
-def _grasp_nlp(hand: Hand, obj: ObjectModel, beta: float) -> _GraspNLP:
-    return _NLP_CACHE.get("grasp_synthesis", hand, obj, float(beta), lambda: _GraspNLP(hand, obj, beta))
 
 
 # ------------------------------------------------------------------------------ sampling helpers
@@ -373,33 +274,7 @@ def _initial_q(hand, ws, goals_palm, rng) -> NDArray[np.float64]:
 
 
 # --------------------------------------------------------------------------------------- attempt
-@dataclass(frozen=True)
-class _Round:
-    """What one solve of the grasp NLP is given: the pose prior, the joint prior, the objective weights
-    and the exact-distance offsets."""
-
-    R0: NDArray[np.float64]
-    t0: NDArray[np.float64]
-    q_ref: NDArray[np.float64]
-    weights: NDArray[np.float64]  # target, joints, translation, rotation
-    delta_tip: NDArray[np.float64]
-    delta_sph: NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class _Check:
-    """The exact checks at one solution (after the Newton polish of the tips, if it was made)."""
-
-    x: NDArray[np.float64]
-    T_palm_object: NDArray[np.float64]
-    ex_tip: NDArray[np.float64]
-    ex_sph: NDArray[np.float64]
-    sd_tip: NDArray[np.float64]
-    sd_sph: NDArray[np.float64]
-    ok: bool
-
-
-def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance) -> Grasp | None:
+def _attempt(hand, obj, nlp: GraspNLP, data, ws, rng, mu, guess, avoid, min_mean_distance) -> Grasp | None:
     T0 = _sample_pose(hand, obj, data, rng, guess)
     idx = _pick_targets(hand, data, ws, T0, rng, avoid, min_mean_distance, mu)
     if idx is None:
@@ -407,8 +282,9 @@ def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance)
         return None
     targets_obj = data.points[idx] + hand.tip_radius * data.normals[idx]
     q0 = _initial_q(hand, ws, transform_points(T0, targets_obj), rng)
-    check = _solve_exact(hand, obj, nlp, targets_obj, q0, T0)
+    check, why_not = solve_exact(nlp, targets_obj, q0, T0)
     if check is None:
+        _STATS[why_not] += 1
         return None
     q = np.clip(check.x[: nlp.n], hand.q_lower, hand.q_upper)
     try:
@@ -426,80 +302,6 @@ def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance)
         return None
     _STATS["ok"] += 1
     return grasp
-
-
-def _solve_exact(hand, obj, nlp: _GraspNLP, targets_obj, q0, T0) -> _Check | None:
-    """Solve the grasp NLP from (q0, T0) towards the tip targets, with exact-distance offset corrections
-    and proximal re-centring, until the exact checks hold; None if they do not within the rounds."""
-    r = hand.tip_radius
-
-    def params(rnd: _Round):
-        return nlp.pack(rnd.R0, rnd.t0, targets_obj, rnd.delta_tip, rnd.delta_sph, rnd.q_ref, rnd.weights)
-
-    def evaluate(x, rnd: _Round) -> _Check:
-        tips_obj, sph_obj, sd_tip, sd_sph = (np.asarray(v) for v in nlp.eval_points(x, params(rnd)))
-        ex_tip = obj.exact_signed_distance(tips_obj.T)
-        ex_sph = obj.exact_signed_distance(sph_obj.T)
-        tip_ok = np.all(np.abs(ex_tip - r) <= 0.5 * SURFACE_TOL)
-        sph_ok = np.all(ex_sph - nlp.radii >= nlp.beta + 2e-4)
-        if sph_ok and not tip_ok and np.max(np.abs(ex_tip - r)) < 2e-3:
-            q_pol = _polish_tips(hand, obj, x[: nlp.n], nlp.pose(x, rnd.R0, rnd.t0))
-            if q_pol is not None:
-                x = np.concatenate([q_pol, x[nlp.n:]])
-                tip_ok = True
-        return _Check(x, nlp.pose(x, rnd.R0, rnd.t0), ex_tip, ex_sph, sd_tip.ravel(), sd_sph.ravel(),
-                      bool(tip_ok and sph_ok))
-
-    def new_round(x, c: _Check, rnd: _Round) -> _Round:
-        log.debug("tip error %.3g mm, min clearance %.3g mm", 1e3 * np.max(np.abs(c.ex_tip - r)),
-                  1e3 * np.min(c.ex_sph - nlp.radii))
-        # spheres near the object get the exact-minus-smooth offset (either sign); far ones only tighten
-        near = c.ex_sph - nlp.radii < 0.005
-        delta_sph = np.where(near, c.ex_sph - c.sd_sph, np.minimum(rnd.delta_sph, c.ex_sph - c.sd_sph))
-        # polish: re-centre the pose prior on the solution and pull q towards it (a proximal term), so
-        # the tips stay where the offsets were measured and the correction converges
-        T_cur = c.T_palm_object
-        return _Round(T_cur[:3, :3], T_cur[:3, 3], x[: nlp.n].copy(), np.array([0.01, 10.0, 10.0, 100.0]),
-                      c.ex_tip - c.sd_tip, delta_sph)
-
-    first = _Round(T0[:3, :3], T0[:3, 3], q0, np.array([1.0, 0.1, 1.0, 10.0]), np.zeros(nlp.m),
-                   np.zeros(nlp.k))
-    corr = _solver.correct_offsets(
-        lambda x, rnd: nlp.solve(np.concatenate([rnd.q_ref, np.zeros(6)]), params(rnd)), evaluate,
-        lambda c: c.ok, new_round, offsets=first, x=np.concatenate([q0, np.zeros(6)]), evaluation=None,
-        max_solves=_CORRECTION_ROUNDS, accept=lambda res: res.x if res.success else None)
-    if not corr.usable:
-        log.debug("grasp NLP round %d: %s", corr.solves - 1, corr.result.status)
-        _STATS["nlp_" + corr.result.status] += 1
-        return None
-    if not corr.converged:
-        _STATS["not_exact"] += 1
-        return None
-    return corr.evaluation
-
-
-def _polish_tips(hand: Hand, obj: ObjectModel, q, T_palm_object, iters: int = 6):
-    """Newton steps on the exact distance: move each tip centre along its contact normal by
-    −(d_exact − r_tip) with a damped least-norm step of its finger's joints. Returns q, or None if the
-    tips do not reach `SURFACE_TOL` / 2 within joint limits."""
-    q = np.array(q, float)
-    T_object_palm = inv_T(T_palm_object)
-    R = np.asarray(T_palm_object)[:3, :3]
-    for _ in range(iters):
-        tips = transform_points(T_object_palm, np.asarray(hand.tip_positions(q)).reshape(-1, 3))
-        closest, d = obj.closest_points(tips)
-        err = np.asarray(d) - hand.tip_radius
-        if np.max(np.abs(err)) <= 0.5 * SURFACE_TOL:
-            return q
-        for i, f in enumerate(hand.fingers):
-            v = tips[i] - closest[i]
-            nv = np.linalg.norm(v)
-            n_obj = v / nv if nv > 1e-9 else obj.surface_normals(tips[i:i + 1])[0]
-            idx = np.asarray(hand.finger_joints[f])
-            J = np.asarray(hand.tip_jacobian(q, f))[:, idx]
-            dq = J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(3), -err[i] * (R @ n_obj))
-            q[idx] = np.clip(q[idx] + dq, np.asarray(hand.q_lower)[idx], np.asarray(hand.q_upper)[idx])
-    return None
 
 
 def _non_tip_clear(grasp: Grasp, beta: float) -> bool:
@@ -551,7 +353,7 @@ def generate_grasps(
 
 def _generate(hand, obj, n, seed, mu, beta, guess, max_attempts, avoid, min_mean_distance) -> list[Grasp]:
     max_attempts = 60 * n if max_attempts is None else int(max_attempts)
-    nlp = _grasp_nlp(hand, obj, beta)
+    nlp = grasp_nlp(hand, obj, beta)
     data = _object_data(hand, obj)
     ws = _workspace(hand)
     out: list[Grasp] = []

@@ -308,11 +308,12 @@ class InGraspNLP:
         delta[: self._k] = np.minimum(delta[: self._k], 0.0)
         return delta
 
-    def _exact_clearance(self, x, p):
-        s_obj, sd_l, R, t = self._points(x, p)
+    def _distances(self, x, p) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Exact and smooth (no offsets) distances (k + m,) of the non-tip spheres, then the tips, m."""
+        s_obj, sd_l, _, _ = self._points(x, p)
         exact = np.asarray(self.obj.near_signed_distance(np.asarray(s_obj).T, self._radii_all + 0.01),
                            float).ravel()
-        return exact, np.asarray(sd_l, float).ravel(), make_T(np.asarray(R), np.asarray(t).ravel())
+        return exact, np.asarray(sd_l, float).ravel()
 
     def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tips: ArrayLike, *,
               T_target: ArrayLike | None = None,
@@ -366,17 +367,17 @@ class InGraspNLP:
         def solve_with(x, delta):  # every solve starts at the grasp (x_start), warm multipliers aside
             return self.warm_start.solve(self._solver, self._bounds, x0=x_start, p=params(delta))
 
-        def done(ev) -> bool:
-            gap = ev[0] - self._radii_all
+        def done(distances) -> bool:
+            gap = distances[0] - self._radii_all  # exact distance − radius
             clear = np.min(gap[: self._k], initial=np.inf)
             return bool(clear >= 0.5 * o.beta and np.max(np.abs(gap[self._k:])) <= 5e-5)
 
         zeros = np.zeros(self._k + self._m)
-        start = self._exact_clearance(x_start, params(zeros))
+        start = self._distances(x_start, params(zeros))
         corr = _solver.correct_offsets(
-            solve_with, lambda x, delta: self._exact_clearance(x, params(delta)), done,
-            lambda x, ev, delta: self._offsets(*ev[:2]), offsets=self._offsets(*start[:2]), x=x_start,
-            evaluation=start, max_solves=o.max_corrections + 1,
+            solve_with, lambda x, delta: self._distances(x, params(delta)), done,
+            lambda x, distances, delta: self._offsets(*distances), offsets=self._offsets(*start),
+            x=x_start, evaluation=start, max_solves=o.max_corrections + 1,
             accept=_solver.clipped_if_finite(self._bounds))
         return self._result(corr, c_tips, params(zeros))
 
