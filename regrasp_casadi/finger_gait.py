@@ -86,7 +86,7 @@ def _param_layout(n: int, k: int, n_planes: int) -> _solver.ParamLayout:
         ("p_object_tip_goal", (3,)),  # goal tip-sphere centre, object frame, m
         ("delta_tip", (1,)),  # exact-distance offset of the tip, m
         ("delta_l", (k,)),  # exact-distance offsets of the finger's other spheres, m
-        ("normals_tip", (3 * n_planes,)),  # local planes near the tip, as terms.local_signed_distance
+        ("normals_tip", (3 * n_planes,)),  # local planes near the tip, as local_signed_distance
         ("offsets_tip", (n_planes,)),  # reads them (C order of ObjectModel.local_planes), object frame
     ])
 

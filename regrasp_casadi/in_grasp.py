@@ -165,7 +165,7 @@ def _param_layout(method: str, k: int, m: int, n_planes: int) -> _solver.ParamLa
         ("R_object_tips", (3, 3 * m)),  # tip orientations at the start, object frame: [R_1 | … | R_m]
         ("delta_l", (k + m,)),  # exact-distance offsets: non-tip spheres, then tips, m
         ("normals_tips", (3 * n_planes, m)),  # local planes near each tip (columns, as
-        ("offsets_tips", (n_planes, m)),  # terms.local_signed_distance reads them), object frame
+        ("offsets_tips", (n_planes, m)),  # signed_distance.local_signed_distance reads them)
     ]
     if method == "svd":
         blocks += [("R_target", (3, 3)), ("t_target", (3,))]  # target object pose, palm frame
