@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> None:
     R_turn = rot_axis_angle([1.0, 0.0, 0.0], np.radians(args.turn))
     T_target = make_T(R_turn @ T0[:3, :3], T0[:3, 3] + [0.0, 0.0, args.lift])
 
-    nlp = InGraspNLP(hand, obj, "pose")
+    nlp = InGraspNLP(hand, obj, "svd")
     result = nlp.solve(grasp.q, T0, grasp.tip_centers_object, T_target=T_target)
 
     dt = np.linalg.norm(result.T_palm_object[:3, 3] - T_target[:3, 3]) * 1e3

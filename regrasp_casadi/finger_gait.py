@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
+from regrasp_casadi.constants import BETA, ETA
 from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
 from regrasp_casadi.signed_distance import DEFAULT_TAU
 
@@ -35,10 +36,10 @@ _MM = 1e3  # distance-constraint scale: m → mm
 class FingerGaitOptions:
     """Knobs of OPT1 (paper §III-A); SI units."""
 
-    eta: float = 0.01
+    eta: float = ETA
     """η, bound on the fingertip displacement of one gait, m (paper: 1 cm)."""
-    beta: float = 0.001
-    """β, clearance every other sphere of the moving finger keeps from the object, m (paper: 0.1 cm)."""
+    beta: float = BETA
+    """β, clearance every other sphere of the moving finger keeps from the object, m (paper: 1 mm)."""
     surface_tol: float = 5e-5
     """Exact-contact tolerance: re-solve with a corrected offset until |SD_exact(tip) − r| ≤ this, m."""
     max_corrections: int = 4
@@ -75,6 +76,33 @@ class FingerGaitResult:
     """Smallest exact distance of the finger's other spheres to the object, m."""
 
 
+def _param_layout(n: int, k: int, n_planes: int) -> _solver.ParamLayout:
+    """OPT1's parameters for a hand of `n` joints, a finger of `k` non-tip spheres and `n_planes` local
+    planes near the tip."""
+    return _solver.ParamLayout([
+        ("q_all", (n,)),  # joints at the start of the gait, rad (the other fingers keep them)
+        ("R_palm_object", (3, 3)),  # object pose, palm frame
+        ("t_palm_object", (3,)),  # m
+        ("p_object_tip_goal", (3,)),  # goal tip-sphere centre, object frame, m
+        ("delta_tip", (1,)),  # exact-distance offset of the tip, m
+        ("delta_l", (k,)),  # exact-distance offsets of the finger's other spheres, m
+        ("normals_tip", (3 * n_planes,)),  # local planes near the tip, as local_signed_distance
+        ("offsets_tip", (n_planes,)),  # reads them (C order of ObjectModel.local_planes), object frame
+    ])
+
+
+@dataclass(frozen=True)
+class _Evaluation:
+    """The finger at one point of the correction loop."""
+
+    p_object_tip: NDArray[np.float64]
+    """Tip-sphere centre, (3,) object frame, m."""
+    exact: NDArray[np.float64]
+    """Exact signed distances (1 + k,) of the tip and the finger's other spheres, m."""
+    smooth: NDArray[np.float64]
+    """Smooth model distances (1 + k,) of the same points, without offsets, m."""
+
+
 class FingerGaitNLP:
     r"""OPT1, the finger-gait NLP of Sundaralingam & Hermans (ICRA 2018, §III-A), for one finger r:
 
@@ -95,8 +123,8 @@ class FingerGaitNLP:
     make contacts exact: after a solve, δ = SD_exact − SD_smooth at the solution and the NLP is solved
     again (warm started) until the tip sits on the real mesh within `surface_tol`.
 
-    Decision variables: the finger's joints (n_r,). Parameters: the full joint vector (n,), the object
-    pose (R column-major (9,), t (3,)), the goal tip centre (3,) object frame, δ_tip (1,), δ_l (k,), the
+    Decision variables: the finger's joints (n_r,). Parameters (`layout`): the full joint vector (n,),
+    the object pose (R (3, 3), t (3,)), the goal tip centre (3,) object frame, δ_tip (1,), δ_l (k,), the
     tip's local planes (normals, offsets).
     The objective is in cm² and the distance constraints in mm, for IPOPT's tolerances.
     """
@@ -125,16 +153,9 @@ class FingerGaitNLP:
         # decision variables
         q_r = ca.SX.sym("q_r", idx.size)
         # parameters
-        q_all = ca.SX.sym("q_all", n)
-        R_vec = ca.SX.sym("R_palm_object", 9)
-        t = ca.SX.sym("t_palm_object", 3)
-        c_goal = ca.SX.sym("p_object_tip_goal", 3)
-        delta_tip = ca.SX.sym("delta_tip", 1)
-        delta_l = ca.SX.sym("delta_l", k)
-        N_tip = ca.SX.sym("normals_tip", n_local * LOCAL_PLANES * 3)  # local planes near the tip
-        h_tip = ca.SX.sym("offsets_tip", n_local * LOCAL_PLANES)
-        p = ca.vertcat(q_all, R_vec, t, c_goal, delta_tip, delta_l, N_tip, h_tip)
-        R = ca.reshape(R_vec, 3, 3)
+        self.layout = _param_layout(n, k, n_local * LOCAL_PLANES)
+        p, P = self.layout.symbols()
+        q_all, R, t = P["q_all"], P["R_palm_object"], P["t_palm_object"]
 
         q_full = terms.substitute_joints(q_all, idx, q_r)
         tip_fun = hand.tip_position_function(finger)
@@ -147,30 +168,32 @@ class FingerGaitNLP:
         else:
             s_obj = ca.SX(3, 0)
             sd_l = ca.SX(0, 1)
-        sd_tip = signed_distance.local_signed_distance(N_tip, h_tip, c_obj, n_local, tau)
+        sd_tip = signed_distance.local_signed_distance(P["normals_tip"], P["offsets_tip"], c_obj, n_local,
+                                                       tau)
 
         # objective
-        f = _CM2 * ca.sumsqr(c_obj - c_goal)
+        f = _CM2 * ca.sumsqr(c_obj - P["p_object_tip_goal"])
         # constraints
         g = ca.vertcat(
-            _MM * (sd_tip + delta_tip - hand.tip_radius),
-            _MM * (sd_l + delta_l - ca.DM(radii)),
+            _MM * (sd_tip + P["delta_tip"] - hand.tip_radius),
+            _MM * (sd_l + P["delta_l"] - ca.DM(radii)),
             _CM2 * ca.sumsqr(c_palm - c_palm0),
         )
         # bounds
-        self._lbx = np.asarray(hand.q_lower, float)[idx]
-        self._ubx = np.asarray(hand.q_upper, float)[idx]
-        self._lbg = np.concatenate([[0.0], np.full(k, _MM * o.beta), [-np.inf]])
-        self._ubg = np.concatenate([[0.0], np.full(k, np.inf), [_CM2 * o.eta**2]])
+        self._bounds = _solver.Bounds(
+            lbx=np.asarray(hand.q_lower, float)[idx], ubx=np.asarray(hand.q_upper, float)[idx],
+            lbg=np.concatenate([[0.0], np.full(k, _MM * o.beta), [-np.inf]]),
+            ubg=np.concatenate([[0.0], np.full(k, np.inf), [_CM2 * o.eta**2]]))
         # solver
         nlp = {"x": q_r, "p": p, "f": f, "g": g}
-        self._solver = ca.nlpsol(f"finger_gait_{finger}", "ipopt", nlp,
-                                 _solver.ipopt_options(print_level=o.print_level))
+        self._solver = _solver.build_solver(f"finger_gait_{finger}", nlp,
+                                            _solver.SolverOptions(print_level=o.print_level))
         # numeric helper: tip and sphere points (object frame) and their smooth distances, no offsets
         self._points = ca.Function("gait_points", [q_r, p], [c_obj, s_obj, sd_tip, sd_l],
                                    ["q_r", "p"], ["p_object_tip", "p_object_spheres", "sd_tip", "sd_l"])
         self._k = k
-        self._lam = None  # (lam_x, lam_g) of the last solve, for warm starts
+        self.warm_start = _solver.WarmStart()
+        """Multipliers of the last successful solve, for the next one."""
 
     @classmethod
     def build_count(cls) -> int:
@@ -179,23 +202,28 @@ class FingerGaitNLP:
 
     def reset(self) -> None:
         """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""
-        self._lam = None
+        self.warm_start.reset()
 
-    def _params(self, q, T, c_goal, delta_tip, delta_l, planes):
-        return np.concatenate([q, T[:3, :3].ravel(order="F"), T[:3, 3], c_goal, [delta_tip], delta_l,
-                               planes[0].ravel(), planes[1].ravel()])
+    def _params(self, q, T, c_goal, delta, planes) -> NDArray[np.float64]:
+        """p of a solve from (`q`, `T`) towards `c_goal` with offsets `delta` (1 + k,) (tip, then the
+        other spheres) and the tip's local `planes` (normals, offsets)."""
+        return self.layout.pack(q_all=q, R_palm_object=T[:3, :3], t_palm_object=T[:3, 3],
+                                p_object_tip_goal=c_goal, delta_tip=delta[:1], delta_l=delta[1:],
+                                normals_tip=planes[0].ravel(), offsets_tip=planes[1].ravel())
+
+    def _evaluate(self, q_r, p) -> _Evaluation:
+        """Tip centre (object frame) and the exact and smooth (no offsets) distances (1 + k,) of the tip
+        and the finger's spheres at the finger joints `q_r` and parameters `p`."""
+        c_obj, s_obj, sd_tip, sd_l = self._points(q_r, p)
+        pts = np.vstack([np.asarray(c_obj).reshape(1, 3), np.asarray(s_obj).T.reshape(-1, 3)])
+        exact = np.asarray(self.obj.near_signed_distance(pts, self._near), float).ravel()
+        smooth = np.concatenate([np.asarray(sd_tip).ravel(), np.asarray(sd_l).ravel()])
+        return _Evaluation(np.asarray(c_obj).ravel(), exact, smooth)
 
     def _smooth(self, q_r, p):
         """Smooth distances (1 + k,) of the tip and the finger's spheres (no offsets)."""
         _, _, sd_tip, sd_l = self._points(q_r, p)
         return np.concatenate([np.asarray(sd_tip).ravel(), np.asarray(sd_l).ravel()])
-
-    def _exact(self, q_r, p):
-        c_obj, s_obj, sd_tip, sd_l = self._points(q_r, p)
-        pts = np.vstack([np.asarray(c_obj).reshape(1, 3), np.asarray(s_obj).T.reshape(-1, 3)])
-        exact = np.asarray(self.obj.near_signed_distance(pts, self._near), float).ravel()
-        smooth = np.concatenate([np.asarray(sd_tip).ravel(), np.asarray(sd_l).ravel()])
-        return np.asarray(c_obj).ravel(), exact, smooth
 
     def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tip_goal: ArrayLike) -> FingerGaitResult:
         """Move the finger's tip towards `p_object_tip_goal` (3,) (goal tip-sphere centre, object frame, m)
@@ -210,44 +238,45 @@ class FingerGaitNLP:
         reach = min(1.0, 1.5 * o.eta / max(float(np.linalg.norm(c_goal - c0)), 1e-12))
         selection = [c0 + s * reach * (c_goal - c0) for s in (0.0, 0.25, 0.5, 0.75, 1.0)]
         planes = self.obj.local_planes(selection, self._n_local)  # the planes that matter along the way
-        p0 = self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes)
-        c_obj, exact, smooth = self._exact(x0, p0)  # tip and exact distances at x, kept current below
-        delta = exact - smooth  # offsets that make the smooth model exact at the start
-        t_solve, iters, solves = 0.0, 0, 0
-        x = x0
-        res = None
-        for _ in range(o.max_corrections + 1):
-            p = self._params(q, T, c_goal, delta[0], delta[1:], planes)
-            lam_x, lam_g = self._lam if self._lam is not None else (None, None)
-            res = _solver.solve(self._solver, x0=x, p=p, lbx=self._lbx, ubx=self._ubx, lbg=self._lbg,
-                                ubg=self._ubg, lam_x0=lam_x, lam_g0=lam_g)
-            solves += 1
-            t_solve += res.time
-            iters += max(res.iterations, 0)
-            if not np.all(np.isfinite(res.x)):
-                break
-            x = np.clip(res.x, self._lbx, self._ubx)
-            if res.success:
-                self._lam = (res.lam_x, res.lam_g)
-            c_obj, exact, smooth = self._exact(x, p)
-            surface_error = abs(exact[0] - self.hand.tip_radius)
-            clear_ok = self._k == 0 or np.min(exact[1:] - self._radii) >= 0.5 * o.beta
-            if surface_error <= o.surface_tol and clear_ok:
-                break
-            selection.append(c_obj)  # re-select the planes with the solution point, then re-solve
+
+        def params(delta, planes):
+            return self._params(q, T, c_goal, delta, planes)
+
+        def solve_with(x, offsets):
+            return self.warm_start.solve(self._solver, self._bounds, x0=x, p=params(*offsets))
+
+        def done(ev: _Evaluation) -> bool:
+            clear_ok = self._k == 0 or np.min(ev.exact[1:] - self._radii) >= 0.5 * o.beta
+            return abs(ev.exact[0] - self.hand.tip_radius) <= o.surface_tol and clear_ok
+
+        def new_offsets(x, ev: _Evaluation, offsets):
+            selection.append(ev.p_object_tip)  # re-select the planes with the solution point
             planes = self.obj.local_planes(selection, self._n_local)
-            delta = exact - self._smooth(x, self._params(q, T, c_goal, 0.0, np.zeros(self._k), planes))
+            return ev.exact - self._smooth(x, params(np.zeros(1 + self._k), planes)), planes
+
+        start = self._evaluate(x0, params(np.zeros(1 + self._k), planes))
+        corr = _solver.correct_offsets(solve_with, lambda x, offsets: self._evaluate(x, params(*offsets)),
+                                       done, new_offsets, offsets=(start.exact - start.smooth, planes),
+                                       x=x0, evaluation=start, max_solves=o.max_corrections + 1,
+                                       accept=_solver.clipped_if_finite(self._bounds))
+        return self._result(q, c0, corr)
+
+    def _result(self, q, c0, corr: _solver.Correction[_Evaluation]) -> FingerGaitResult:
+        """The gait's result from the correction loop's last point, judged with the exact distances."""
+        o = self.options
+        ev = corr.evaluation
         q_new = q.copy()
-        q_new[self._idx] = x
-        surface_error = float(abs(exact[0] - self.hand.tip_radius))
-        min_clear = float(np.min(exact[1:] - self._radii)) if self._k else float("inf")
-        step = float(np.linalg.norm(c_obj - c0))  # the object does not move during a gait
+        q_new[self._idx] = corr.x
+        surface_error = float(abs(ev.exact[0] - self.hand.tip_radius))
+        min_clear = float(np.min(ev.exact[1:] - self._radii)) if self._k else float("inf")
+        step = float(np.linalg.norm(ev.p_object_tip - c0))  # the object does not move during a gait
         feasible = (surface_error <= max(o.surface_tol, 1e-4) and min_clear >= 0.0
                     and step <= o.eta + 1e-6)
+        status = corr.result.status if corr.result is not None else "not_solved"
         if not feasible:
             _log.debug("gait %s infeasible: status %s surface %.2e clearance %.2e step %.4f",
-                       self.finger, res.status, surface_error, min_clear, step)
-        return FingerGaitResult(q=q_new, p_object_tip=c_obj, status=res.status, success=bool(feasible),
-                                iterations=iters, solves=solves, solve_time=t_solve,
-                                surface_error=surface_error, min_clearance=min_clear)
-
+                       self.finger, status, surface_error, min_clear, step)
+        return FingerGaitResult(q=q_new, p_object_tip=ev.p_object_tip, status=status,
+                                success=bool(feasible), iterations=corr.iterations, solves=corr.solves,
+                                solve_time=corr.solve_time, surface_error=surface_error,
+                                min_clearance=min_clear)

@@ -13,21 +13,10 @@ How (one attempt): sample an object pose in front of the palm (an orientation al
 oriented bounding box plus a random tilt, a random position where the fingertip workspaces reach it),
 pick one contact target per finger among sampled surface points that the finger can reach (tip
 workspace samples over the joint limits), with the fingers on one side and the thumb (`hand.thumb`)
-opposite them, keeping only target sets that are themselves in force closure, then solve with IPOPT
-
-    min_{q, δt, a}  Σ_r ||R(a)ᵀ(FK_r(q) − t) − (x_r + r_tip n_r)||² / s² + w_q ||q − q_ref||²
-                    + w_t ||δt||² / s² + w_a ||a||²
-    s.t.  sd(R(a)ᵀ(FK_r(q) − t)) + δ_r = r_tip                       (each fingertip r)
-          sd_c(R(a)ᵀ(c_k(q) − t)) + δ_k − ρ_k ≥ β + margin           (each non-tip sphere k)
-          q_lower ≤ q ≤ q_upper
-
-with t = t₀ + δt, R(a) = R₀·Cay(a) (Cayley map), sd the smooth signed distance of `ObjectModel`
-(τ = 2 mm), sd_c its coarse clearance variant (≤ 16 planes per piece) and δ = d_exact − sd at the previous
-solution (a local correction). Later rounds re-centre the pose prior and q_ref on the solution with large
-weights (a proximal step) and re-solve; once the spheres are clear and the tips within 2 mm, Newton
-steps on the exact distance (each finger's tip moved along its contact normal by a damped least-norm
-joint step) put the tips on the surface. The NLP is built once per (hand, object, β) and re-solved from
-different seeds. Same seed → same grasps (for the same hand and object models).
+opposite them, keeping only target sets that are themselves in force closure, then solve the grasp NLP
+of `grasp_nlp` (tips on the smooth surface, other spheres clear, with exact-distance corrections and a
+final Newton polish of the tips on the exact distance). The NLP is built once per (hand, object, β) and
+re-solved from different seeds. Same seed → same grasps (for the same hand and object models).
 
     >>> grasps = generate_grasps(Hand.allegro_right(), ObjectModel.box((0.06, 0.06, 0.12)), n=3, seed=0)
     >>> pairs = generate_regrasp_pairs(hand, obj, n_pairs=2, seed=0)
@@ -40,15 +29,14 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from regrasp_casadi import solver as _solver
-from regrasp_casadi import terms
+from regrasp_casadi.constants import BETA, MU
 from regrasp_casadi.errors import GraspError
 from regrasp_casadi.grasp import Grasp
+from regrasp_casadi.grasp_nlp import SURFACE_TOL, GraspNLP, grasp_nlp, solve_exact
 from regrasp_casadi.hand import Hand
 from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.stability import FRICTION_EDGES, force_closure_quality, torque_reference
@@ -64,25 +52,18 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-SURFACE_TOL = 1e-4
-"""Allowed |exact distance of a tip centre − tip radius| of a generated grasp, m (0.1 mm)."""
 _N_WORKSPACE = 20000  # joint samples for the fingertip workspaces
 _N_SURFACE = 3000  # surface samples for contact targets
 _REACH_TOL = 0.006  # a target is reachable if a workspace sample lies within this distance, m
 _TIP_SPACING = 0.03  # minimum distance between two fingertip targets, m
-_MARGIN = 5e-4  # extra clearance demanded of the smooth distance of non-tip spheres, m
-_SCALE = 0.01  # length scale of the objective, m
 _MIN_QUALITY = 1e-3  # force-closure margin a generated grasp must exceed
 _CONE_SHRINK = float(np.cos(np.pi / FRICTION_EDGES))
 """Generated grasps are tested with μ·cos(π/8): the circle of that radius lies inside every 8-edge
 polygon of radius μ, so the grasp is in force closure however the linearised cones are turned."""
-_CORRECTION_ROUNDS = 5
-_CLEARANCE_PLANES = 16  # planes per piece of the coarse distance used for the non-tip spheres
-_TAU = 2e-3  # smoothing temperature of the NLP's distance, m (the exact-minus-smooth offset removes its bias)
 
 
 # ------------------------------------------------------------------------------------ force closure
-def grasp_quality(grasp: Grasp, mu: float = 0.5) -> float:
+def grasp_quality(grasp: Grasp, mu: float = MU) -> float:
     """Force-closure margin ε of a grasp (see `force_closure_quality`); > 0 means force closure.
 
     Normals: the direction from each contact to its fingertip sphere centre when the grasp has joints
@@ -108,94 +89,8 @@ def grasp_quality(grasp: Grasp, mu: float = 0.5) -> float:
     return force_closure_quality(c, normals, mu, com, length)
 
 
-# ------------------------------------------------------------------------------------------- NLP
-class _GraspNLP:
-    """The grasp-synthesis NLP of the module docstring, built once per (hand, object, β)."""
-
-    def __init__(self, hand: Hand, obj: ObjectModel, beta: float):
-        self.hand, self.obj, self.beta = hand, obj, float(beta)
-        n, m = hand.n_joints, len(hand.fingers)
-        self.radii = np.asarray(hand.sphere_radii(None, include_tip=False), float)
-        k = len(self.radii)
-        self.n, self.m, self.k = n, m, k
-        # decision variables
-        q = ca.MX.sym("q", n)
-        dt = ca.MX.sym("dt", 3)
-        a = ca.MX.sym("a", 3)
-        x = ca.vertcat(q, dt, a)
-        # parameters
-        R0 = ca.MX.sym("R0", 3, 3)
-        t0 = ca.MX.sym("t0", 3)
-        targets = ca.MX.sym("targets", 3, m)  # tip-centre targets, object frame
-        delta_tip = ca.MX.sym("delta_tip", m)
-        delta_sph = ca.MX.sym("delta_sph", k)
-        q_ref = ca.MX.sym("q_ref", n)
-        weights = ca.MX.sym("weights", 4)  # target, joints, translation, rotation
-        p = ca.vertcat(ca.vec(R0), t0, ca.vec(targets), delta_tip, delta_sph, q_ref, weights)
-        R = ca.mtimes(R0, terms.cayley_rotation(a))
-        t = t0 + dt
-        tips_palm = hand.tip_positions_function()(q)
-        tips_obj = ca.mtimes(R.T, tips_palm - ca.repmat(t, 1, m))
-        sph_palm = hand.sphere_centers_function(None, include_tip=False)(q)
-        sph_obj = ca.mtimes(R.T, sph_palm - ca.repmat(t, 1, k))
-        sd_tip = obj.signed_distance_map_function(m, _TAU)(tips_obj)
-        sd_sph = obj.clearance_distance_function(_CLEARANCE_PLANES, _TAU).map(k)(sph_obj)
-        # objective
-        f = (weights[0] * ca.sumsqr(tips_obj - targets) / _SCALE**2
-             + weights[1] * ca.sumsqr(q - q_ref)
-             + weights[2] * ca.sumsqr(dt) / _SCALE**2
-             + weights[3] * ca.sumsqr(a))
-        # constraints
-        g_tip = sd_tip.T + delta_tip - hand.tip_radius
-        g_sph = sd_sph.T + delta_sph - ca.DM(self.radii)
-        g = ca.vertcat(g_tip, g_sph)
-        # bounds
-        self.lbg = np.concatenate([np.zeros(m), np.full(k, self.beta + _MARGIN)])
-        self.ubg = np.concatenate([np.zeros(m), np.full(k, np.inf)])
-        self.lbx = np.concatenate([hand.q_lower, np.full(3, -0.05), np.full(3, -0.5)])
-        self.ubx = np.concatenate([hand.q_upper, np.full(3, 0.05), np.full(3, 0.5)])
-        # solver
-        opts = {
-            "print_time": False,
-            "ipopt.print_level": 0,
-            "ipopt.sb": "yes",
-            "ipopt.max_iter": 400,
-            "ipopt.tol": 1e-10,
-            "ipopt.constr_viol_tol": 1e-9,
-            "ipopt.bound_relax_factor": 0.0,
-            "ipopt.mu_strategy": "adaptive",
-        }
-        self.solver = ca.nlpsol("grasp_synthesis", "ipopt", {"x": x, "p": p, "f": f, "g": g}, opts)
-        self.eval_points = ca.Function("grasp_points", [x, p], [tips_obj, sph_obj, sd_tip, sd_sph])
-
-    def pack(self, R0, t0, targets, delta_tip, delta_sph, q_ref, weights) -> NDArray[np.float64]:
-        return np.concatenate([np.asarray(R0).ravel(order="F"), t0, np.asarray(targets).T.ravel(order="F"),
-                               delta_tip, delta_sph, q_ref, weights])
-
-    def pose(self, x, R0, t0) -> NDArray[np.float64]:
-        C = np.asarray(terms.cayley_rotation(ca.DM(x[self.n + 3:])))
-        return make_T(R0 @ C, t0 + x[self.n:self.n + 3])
-
-    def solve(self, x0, p) -> tuple[NDArray[np.float64], str]:
-        res = _solver.solve(self.solver, x0=x0, p=p, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg)
-        return res.x, res.status
-
-
 _STATS: collections.Counter = collections.Counter()
 """Outcome counts of generation attempts in this process (diagnostics)."""
-
-_NLP_CACHE: dict[tuple[int, int, float], _GraspNLP] = {}
-
-
-def _grasp_nlp(hand: Hand, obj: ObjectModel, beta: float) -> _GraspNLP:
-    key = (id(hand), id(obj), float(beta))
-    nlp = _NLP_CACHE.get(key)
-    if nlp is None or nlp.hand is not hand or nlp.obj is not obj:
-        if len(_NLP_CACHE) >= 8:
-            _NLP_CACHE.pop(next(iter(_NLP_CACHE)))
-        nlp = _GraspNLP(hand, obj, beta)
-        _NLP_CACHE[key] = nlp
-    return nlp
 
 
 # ------------------------------------------------------------------------------ sampling helpers
@@ -380,59 +275,21 @@ def _initial_q(hand, ws, goals_palm, rng) -> NDArray[np.float64]:
 
 
 # --------------------------------------------------------------------------------------- attempt
-def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance) -> Grasp | None:
+def _attempt(hand, obj, nlp: GraspNLP, data, ws, rng, mu, guess, avoid, min_mean_distance) -> Grasp | None:
     T0 = _sample_pose(hand, obj, data, rng, guess)
     idx = _pick_targets(hand, data, ws, T0, rng, avoid, min_mean_distance, mu)
     if idx is None:
         _STATS["no_targets"] += 1
         return None
-    r = hand.tip_radius
-    targets_obj = data.points[idx] + r * data.normals[idx]
+    targets_obj = data.points[idx] + hand.tip_radius * data.normals[idx]
     q0 = _initial_q(hand, ws, transform_points(T0, targets_obj), rng)
-    R0, t0 = T0[:3, :3], T0[:3, 3]
-    m, k = nlp.m, nlp.k
-    delta_tip, delta_sph = np.zeros(m), np.zeros(k)
-    weights = np.array([1.0, 0.1, 1.0, 10.0])
-    q_ref = q0
-    x = np.concatenate([q0, np.zeros(6)])
-    for rnd in range(_CORRECTION_ROUNDS):
-        p = nlp.pack(R0, t0, targets_obj, delta_tip, delta_sph, q_ref, weights)
-        x, status = nlp.solve(x, p)
-        if status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
-            log.debug("grasp NLP round %d: %s", rnd, status)
-            _STATS["nlp_" + status] += 1
-            return None
-        tips_obj, sph_obj, sd_tip, sd_sph = (np.asarray(v) for v in nlp.eval_points(x, p))
-        ex_tip = obj.exact_signed_distance(tips_obj.T)
-        ex_sph = obj.exact_signed_distance(sph_obj.T)
-        tip_ok = np.all(np.abs(ex_tip - r) <= 0.5 * SURFACE_TOL)
-        sph_ok = np.all(ex_sph - nlp.radii >= nlp.beta + 2e-4)
-        if sph_ok and not tip_ok and np.max(np.abs(ex_tip - r)) < 2e-3:
-            q_pol = _polish_tips(hand, obj, x[: nlp.n], nlp.pose(x, R0, t0))
-            if q_pol is not None:
-                x = np.concatenate([q_pol, x[nlp.n:]])
-                tip_ok = True
-        if tip_ok and sph_ok:
-            break
-        log.debug("round %d: tip error %.3g mm, min clearance %.3g mm", rnd, 1e3 * np.max(np.abs(ex_tip - r)),
-                  1e3 * np.min(ex_sph - nlp.radii))
-        delta_tip = ex_tip - sd_tip.ravel()
-        # spheres near the object get the exact-minus-smooth offset (either sign); far ones only tighten
-        near = ex_sph - nlp.radii < 0.005
-        delta_sph = np.where(near, ex_sph - sd_sph.ravel(), np.minimum(delta_sph, ex_sph - sd_sph.ravel()))
-        # polish: re-centre the pose prior on the solution and pull q towards it (a proximal term), so
-        # the tips stay where the offsets were measured and the correction converges
-        T_cur = nlp.pose(x, R0, t0)
-        R0, t0, q_ref = T_cur[:3, :3], T_cur[:3, 3], x[: nlp.n].copy()
-        x = np.concatenate([q_ref, np.zeros(6)])
-        weights = np.array([0.01, 10.0, 10.0, 100.0])
-    else:
-        _STATS["not_exact"] += 1
+    check, why_not = solve_exact(nlp, targets_obj, q0, T0)
+    if check is None:
+        _STATS[why_not] += 1
         return None
-    q = np.clip(x[: nlp.n], hand.q_lower, hand.q_upper)
-    T = nlp.pose(x, R0, t0)
+    q = np.clip(check.x[: nlp.n], hand.q_lower, hand.q_upper)
     try:
-        grasp = Grasp.from_joints(hand, obj, q, T, tol=SURFACE_TOL)
+        grasp = Grasp.from_joints(hand, obj, q, check.T_palm_object, tol=SURFACE_TOL)
     except GraspError as exc:
         log.debug("rejected: %s", exc)
         return None
@@ -446,30 +303,6 @@ def _attempt(hand, obj, nlp, data, ws, rng, mu, guess, avoid, min_mean_distance)
         return None
     _STATS["ok"] += 1
     return grasp
-
-
-def _polish_tips(hand: Hand, obj: ObjectModel, q, T_palm_object, iters: int = 6):
-    """Newton steps on the exact distance: move each tip centre along its contact normal by
-    −(d_exact − r_tip) with a damped least-norm step of its finger's joints. Returns q, or None if the
-    tips do not reach `SURFACE_TOL` / 2 within joint limits."""
-    q = np.array(q, float)
-    T_object_palm = inv_T(T_palm_object)
-    R = np.asarray(T_palm_object)[:3, :3]
-    for _ in range(iters):
-        tips = transform_points(T_object_palm, np.asarray(hand.tip_positions(q)).reshape(-1, 3))
-        closest, d = obj.closest_points(tips)
-        err = np.asarray(d) - hand.tip_radius
-        if np.max(np.abs(err)) <= 0.5 * SURFACE_TOL:
-            return q
-        for i, f in enumerate(hand.fingers):
-            v = tips[i] - closest[i]
-            nv = np.linalg.norm(v)
-            n_obj = v / nv if nv > 1e-9 else obj.surface_normals(tips[i:i + 1])[0]
-            idx = np.asarray(hand.finger_joints[f])
-            J = np.asarray(hand.tip_jacobian(q, f))[:, idx]
-            dq = J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(3), -err[i] * (R @ n_obj))
-            q[idx] = np.clip(q[idx] + dq, np.asarray(hand.q_lower)[idx], np.asarray(hand.q_upper)[idx])
-    return None
 
 
 def _non_tip_clear(grasp: Grasp, beta: float) -> bool:
@@ -486,8 +319,8 @@ def generate_grasps(
     n: int = 1,
     seed: int = 0,
     *,
-    mu: float = 0.5,
-    beta: float = 0.001,
+    mu: float = MU,
+    beta: float = BETA,
     T_palm_object_guess: NDArray[np.float64] | None = None,
     max_attempts: int | None = None,
     progress: Callable[[int, int], None] | None = None,
@@ -524,7 +357,7 @@ def generate_grasps(
 def _generate(hand, obj, n, seed, mu, beta, guess, max_attempts, avoid, min_mean_distance,
               progress=None) -> list[Grasp]:
     max_attempts = 60 * n if max_attempts is None else int(max_attempts)
-    nlp = _grasp_nlp(hand, obj, beta)
+    nlp = grasp_nlp(hand, obj, beta)
     data = _object_data(hand, obj)
     ws = _workspace(hand)
     out: list[Grasp] = []
@@ -551,8 +384,8 @@ def generate_regrasp_pairs(
     seed: int = 0,
     min_mean_distance: float = 0.03,
     *,
-    mu: float = 0.5,
-    beta: float = 0.001,
+    mu: float = MU,
+    beta: float = BETA,
     max_attempts: int = 40,
     progress: Callable[[int, int], None] | None = None,
 ) -> list[tuple[Grasp, Grasp]]:

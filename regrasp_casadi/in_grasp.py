@@ -1,10 +1,12 @@
 """OPT2 — in-grasp manipulation: move the whole hand, and the object with it, keeping the contacts.
 
-Two targets: a desired object pose (`method="pose"`: the SVD form of the paper, and the final in-grasp
-move) or the reachable workspaces of the fingers (`method="sd"`).
+Two targets: a desired object pose (`method="svd"`: the SVD form of the paper, its target pose from
+`svd_target`; also the final in-grasp move, towards the desired pose) or the reachable workspaces of the
+fingers (`method="sd"`).
 
-    >>> nlp = InGraspNLP(hand, obj, "pose")                # built once per (hand, object, method)
-    >>> result = nlp.solve(q, T_palm_object, p_object_tips, T_target=T_palm_object_goal)
+    >>> nlp = InGraspNLP(hand, obj, "svd")                 # built once per (hand, object, method)
+    >>> T_target = svd_target(T_palm_object, contacts_object, goal_contacts_object)
+    >>> result = nlp.solve(q, T_palm_object, p_object_tips, T_target=T_target)
 """
 
 from __future__ import annotations
@@ -20,15 +22,16 @@ from scipy.spatial import ConvexHull
 
 from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
+from regrasp_casadi.constants import BETA, K_ORIENT, K_POS
 from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
 from regrasp_casadi.signed_distance import DEFAULT_TAU
-from regrasp_casadi.transforms import interpolate_pose, log_SO3, make_T
+from regrasp_casadi.transforms import interpolate_pose, inv_T, kabsch, log_SO3, make_T
 
 if TYPE_CHECKING:
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
 
-__all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "workspace_hull"]
+__all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "workspace_hull", "svd_target"]
 
 _log = logging.getLogger(__name__)
 
@@ -39,12 +42,12 @@ _MM = 1e3  # positions in the objective and distance constraints: m → mm
 class InGraspOptions:
     """Knobs of OPT2 (paper §III-B); SI units."""
 
-    k_pos: float = 1000.0
-    """k1, weight of the relaxed-rigidity position term E_pos."""
-    k_orient: float = 10.0
-    """k2, weight of the relaxed-rigidity orientation term E_or."""
-    beta: float = 0.001
-    """β, clearance of every non-tip sphere of the hand from the object, m."""
+    k_pos: float = K_POS
+    """k1, weight of the relaxed-rigidity position term E_pos (paper: 1000)."""
+    k_orient: float = K_ORIENT
+    """k2, weight of the relaxed-rigidity orientation term E_or (paper: 10)."""
+    beta: float = BETA
+    """β, clearance of every non-tip sphere of the hand from the object, m (paper: 1 mm)."""
     max_translation: float = 0.03
     """Trust region: largest object translation per reposing, per axis, m."""
     max_rotation: float = 0.3
@@ -124,6 +127,19 @@ def workspace_hull(hand: Hand, finger: str, n_samples: int = 4000, seed: int = 0
     return WorkspaceHull(normals=n, offsets=h)
 
 
+def svd_target(T_palm_object: ArrayLike, contacts_object: ArrayLike,
+               goal_contacts_object: ArrayLike) -> NDArray[np.float64]:
+    """The target object pose of OPT2's SVD method (paper §III-B), (4, 4) palm frame.
+
+    Kabsch / Besl–McKay gives the rigid transform T_rel (object frame) with X_goal ≈ T_rel · X, X the
+    current contacts (m, 3) and X_goal the goal contacts (m, 3), object frame, m. Moving the object to
+    T* = T_palm_object · T_rel⁻¹ brings each goal contact where its finger's contact is now
+    (T* X_goal ≈ T_palm_object X), so that a finger that keeps its place in the palm reaches its goal.
+    """
+    T_rel = kabsch(contacts_object, goal_contacts_object)  # X_goal ≈ T_rel · X
+    return np.asarray(T_palm_object, float) @ inv_T(T_rel)  # so that o'·X_goal ≈ o·X
+
+
 def _clip_pose(T_from: NDArray, T_to: NDArray, max_translation: float, max_angle: float) -> NDArray:
     """The pose a fraction of the way from `T_from` to `T_to` (translation linear, rotation geodesic)
     such that it is at most `max_translation` (m) and `max_angle` (rad) from `T_from`: the trust region.
@@ -137,6 +153,51 @@ def _clip_pose(T_from: NDArray, T_to: NDArray, max_translation: float, max_angle
 
 def _facet_area(tri: NDArray[np.float64]) -> float:
     return 0.5 * float(np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])))
+
+
+def _param_layout(method: str, k: int, m: int, n_planes: int) -> _solver.ParamLayout:
+    """OPT2's parameters for a hand of `k` non-tip spheres and `m` fingers, `n_planes` local planes per
+    tip; the target blocks depend on the method."""
+    blocks = [
+        ("R0_palm_object", (3, 3)),  # object pose at the start, palm frame
+        ("t0_palm_object", (3,)),  # m
+        ("p_object_tips", (3, m)),  # tip-sphere centres at the start (columns), object frame, m
+        ("R_object_tips", (3, 3 * m)),  # tip orientations at the start, object frame: [R_1 | … | R_m]
+        ("delta_l", (k + m,)),  # exact-distance offsets: non-tip spheres, then tips, m
+        ("normals_tips", (3 * n_planes, m)),  # local planes near each tip (columns, as
+        ("offsets_tips", (n_planes, m)),  # signed_distance.local_signed_distance reads them)
+    ]
+    if method == "svd":
+        blocks += [("R_target", (3, 3)), ("t_target", (3,))]  # target object pose, palm frame
+    else:
+        blocks += [("p_object_tips_goal", (3, m))]  # goal tip-sphere centres (columns), object frame, m
+    return _solver.ParamLayout(blocks)
+
+
+def _relaxed_rigidity(hand: Hand, q: ca.SX, tips_palm: ca.SX, R: ca.SX, t: ca.SX, c_tips: ca.SX,
+                      R_tips: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """E_pos (mm²) and E_or of the relaxed rigidity: the tips (3, m) at `q` against the start contacts
+    `c_tips` (3, m) and orientations `R_tips` (3, 3m), object frame, carried by the object pose (R, t)."""
+    e_pos = 0
+    e_or = 0
+    for r, finger in enumerate(hand.fingers):
+        e_pos += ca.sumsqr(_MM * (tips_palm[:, r] - (R @ c_tips[:, r] + t)))
+        R_tip = hand.link_rotation_function(hand.tip_links[finger])(q)
+        e_or += terms.rotation_error_sq(R_tip, R @ R_tips[:, 3 * r: 3 * r + 3])
+    return e_pos, e_or
+
+
+def _outside_workspaces(hulls: list[WorkspaceHull], R: ca.SX, t: ca.SX, g_tips: ca.SX,
+                        o: InGraspOptions) -> ca.SX:
+    """E_des of the SD method, mm: Σ_r softplus(SD(R g_r + t, R_r) + margin), the goal tip centres
+    `g_tips` (3, m) (object frame) carried by the pose (R, t) against the workspace hulls (palm frame)."""
+    e_des = 0
+    for r, hull in enumerate(hulls):
+        d = signed_distance.hull_signed_distance(hull.normals, hull.offsets, R @ g_tips[:, r] + t,
+                                                 o.tau_hull)
+        d = d + o.sd_margin
+        e_des += _MM * terms.softplus(d, o.tau_hull)
+    return e_des
 
 
 class InGraspNLP:
@@ -153,11 +214,11 @@ class InGraspNLP:
     R_{O,r} the tip orientations in the object frame at the start,
     ``E_pos = Σ_r ||FK_r(Θ) − (R c_r + t)||²`` (mm²) and ``E_or = Σ_r ||R_r(Θ) − R R_{O,r}||_F²``.
 
-    * ``method="pose"`` (the paper's SVD form, and the final in-grasp move):
+    * ``method="svd"`` (the paper's SVD form, and the final in-grasp move):
       ``E_des = ||t − t*||² + (ℓ²/2) ||R − R*||_F²`` (mm², ℓ the object's radius in mm), with the target
-      pose (R*, t*) passed as a parameter; the planner computes it by Kabsch / Besl–McKay. A target
-      beyond the trust region is first moved onto it (along the geodesic), so E_des cannot outpull the
-      relaxed rigidity.
+      pose (R*, t*) passed as a parameter: `svd_target` (Kabsch / Besl–McKay), or the desired pose.
+      A target beyond the trust region is first moved onto it (along the geodesic), so E_des cannot
+      outpull the relaxed rigidity.
     * ``method="sd"``: ``E_des = Σ_r max(0, SD(R g_r + t, R_r) + m)`` (mm), g_r the goal tip centres in
       the object frame, R_r the finger's reachable-workspace hull and m ≥ 0 a margin (``sd_margin``; the
       paper's form is m = 0); max and SD are smoothed (``tau_hull``).
@@ -171,10 +232,10 @@ class InGraspNLP:
 
     _n_builds = 0
 
-    def __init__(self, hand: Hand, obj: ObjectModel, method: Literal["pose", "sd"] = "pose",
+    def __init__(self, hand: Hand, obj: ObjectModel, method: Literal["svd", "sd"] = "svd",
                  options: InGraspOptions | None = None):
-        if method not in ("pose", "sd"):
-            raise ValueError(f"method must be 'pose' or 'sd', got {method!r}")
+        if method not in ("svd", "sd"):
+            raise ValueError(f"method must be 'svd' or 'sd', got {method!r}")
         InGraspNLP._n_builds += 1
         self.hand, self.obj, self.method = hand, obj, method
         self.options = o = options or InGraspOptions()
@@ -184,7 +245,6 @@ class InGraspNLP:
         self._radii, self._k, self._n, self._m = radii, k, n, m
         tau = float(DEFAULT_TAU if o.tau is None else o.tau)
         n_local = self._n_local = min(LOCAL_PIECES, len(obj.pieces))  # pieces per local plane set
-        n_planes = n_local * LOCAL_PLANES
         sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
         ell_mm = _MM * 0.5 * float(np.linalg.norm(obj.mesh.extents))
 
@@ -194,64 +254,42 @@ class InGraspNLP:
         w = ca.SX.sym("w", 3)
         x = ca.vertcat(q, dt, w)
         # parameters
-        R0_vec = ca.SX.sym("R0_palm_object", 9)
-        t0 = ca.SX.sym("t0_palm_object", 3)
-        c_tips = ca.SX.sym("p_object_tips", 3, m)
-        R_tips = ca.SX.sym("R_object_tips", 9, m)
-        delta_l = ca.SX.sym("delta_l", k + m)  # exact-distance offsets: non-tip spheres, then tips
-        N_tips = ca.SX.sym("normals_tips", 3 * n_planes, m)  # local planes near each tip
-        h_tips = ca.SX.sym("offsets_tips", n_planes, m)
-        if method == "pose":
-            R_star_vec = ca.SX.sym("R_target", 9)
-            t_star = ca.SX.sym("t_target", 3)
-            target = ca.vertcat(R_star_vec, t_star)
-        else:
-            g_tips = ca.SX.sym("p_object_tips_goal", 3, m)
-            target = ca.vec(g_tips)
-        p = ca.vertcat(R0_vec, t0, ca.vec(c_tips), ca.vec(R_tips), delta_l, ca.vec(N_tips), ca.vec(h_tips),
-                       target)
-        R, t = terms.pose_from_params(ca.reshape(R0_vec, 3, 3), t0, dt, w)
+        self.layout = _param_layout(method, k, m, n_local * LOCAL_PLANES)
+        p, P = self.layout.symbols()
+        R, t = terms.pose_from_params(P["R0_palm_object"], P["t0_palm_object"], dt, w)
 
         # objective
         tips_palm = hand.tip_positions_function()(q)  # (3, m)
-        e_pos = 0
-        e_or = 0
-        for r, finger in enumerate(hand.fingers):
-            e_pos += ca.sumsqr(_MM * (tips_palm[:, r] - (R @ c_tips[:, r] + t)))
-            R_tip = hand.link_rotation_function(hand.tip_links[finger])(q)
-            e_or += terms.rotation_error_sq(R_tip, R @ ca.reshape(R_tips[:, r], 3, 3))
-        if method == "pose":
-            e_des = ca.sumsqr(_MM * (t - t_star)) + 0.5 * ell_mm**2 * terms.rotation_error_sq(
-                R, ca.reshape(R_star_vec, 3, 3))
+        e_pos, e_or = _relaxed_rigidity(hand, q, tips_palm, R, t, P["p_object_tips"], P["R_object_tips"])
+        if method == "svd":
+            e_des = ca.sumsqr(_MM * (t - P["t_target"])) + 0.5 * ell_mm**2 * terms.rotation_error_sq(
+                R, P["R_target"])
         else:
             self.hulls = [workspace_hull(hand, f) for f in hand.fingers]
-            e_des = 0
-            for r, hull in enumerate(self.hulls):
-                d = signed_distance.hull_signed_distance(hull.normals, hull.offsets, R @ g_tips[:, r] + t,
-                                                         o.tau_hull)
-                d = d + o.sd_margin
-                e_des += _MM * terms.softplus(d, o.tau_hull)
+            e_des = _outside_workspaces(self.hulls, R, t, P["p_object_tips_goal"], o)
         f = e_des + o.k_pos * e_pos + o.k_orient * e_or
         # constraints: non-tip spheres keep β; the tips stay on the surface
         s_obj = terms.to_object_frame(R, t, ca.horzcat(hand.sphere_centers_function(None)(q), tips_palm))
-        sd_tips = [signed_distance.local_signed_distance(N_tips[:, r], h_tips[:, r], s_obj[:, k + r], n_local,
-                                                         tau) for r in range(m)]
+        sd_tips = [signed_distance.local_signed_distance(P["normals_tips"][:, r], P["offsets_tips"][:, r],
+                                                         s_obj[:, k + r], n_local, tau) for r in range(m)]
         sd_l = ca.vertcat(terms.smooth_signed_distances(sd_coarse, s_obj[:, :k]), *sd_tips)
         radii_all = np.concatenate([radii, np.full(m, hand.tip_radius)])
-        g = _MM * (sd_l + delta_l - ca.DM(radii_all))
+        g = _MM * (sd_l + P["delta_l"] - ca.DM(radii_all))
         # bounds
         big_t, big_w = o.max_translation, o.max_rotation
-        self._lbx = np.concatenate([hand.q_lower, np.full(3, -big_t), np.full(3, -big_w)])
-        self._ubx = np.concatenate([hand.q_upper, np.full(3, big_t), np.full(3, big_w)])
-        self._lbg = np.concatenate([np.full(k, _MM * o.beta), np.zeros(m)])
-        self._ubg = np.concatenate([np.full(k, np.inf), np.zeros(m)])
+        self._bounds = _solver.Bounds(
+            lbx=np.concatenate([hand.q_lower, np.full(3, -big_t), np.full(3, -big_w)]),
+            ubx=np.concatenate([hand.q_upper, np.full(3, big_t), np.full(3, big_w)]),
+            lbg=np.concatenate([np.full(k, _MM * o.beta), np.zeros(m)]),
+            ubg=np.concatenate([np.full(k, np.inf), np.zeros(m)]))
         self._radii_all = radii_all
         # solver
-        self._solver = ca.nlpsol(f"in_grasp_{method}", "ipopt", {"x": x, "p": p, "f": f, "g": g},
-                                 _solver.ipopt_options(print_level=o.print_level))
+        self._solver = _solver.build_solver(f"in_grasp_{method}", {"x": x, "p": p, "f": f, "g": g},
+                                            _solver.SolverOptions(print_level=o.print_level))
         self._points = ca.Function("in_grasp_points", [x, p], [s_obj, sd_l, R, t],
                                    ["x", "p"], ["p_object_spheres", "sd_l", "R_palm_object", "t_palm_object"])
-        self._lam = None
+        self.warm_start = _solver.WarmStart()
+        """Multipliers of the last successful solve, for the next one."""
 
     @classmethod
     def build_count(cls) -> int:
@@ -260,7 +298,7 @@ class InGraspNLP:
 
     def reset(self) -> None:
         """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""
-        self._lam = None
+        self.warm_start.reset()
 
     def _offsets(self, exact: NDArray, smooth: NDArray) -> NDArray:
         """Exact-distance offsets δ: the tips' in full (an equality), the clearance spheres' only where
@@ -270,97 +308,95 @@ class InGraspNLP:
         delta[: self._k] = np.minimum(delta[: self._k], 0.0)
         return delta
 
-    def _exact_clearance(self, x, p):
-        s_obj, sd_l, R, t = self._points(x, p)
+    def _distances(self, x, p) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Exact and smooth (no offsets) distances (k + m,) of the non-tip spheres, then the tips, m."""
+        s_obj, sd_l, _, _ = self._points(x, p)
         exact = np.asarray(self.obj.near_signed_distance(np.asarray(s_obj).T, self._radii_all + 0.01),
                            float).ravel()
-        return exact, np.asarray(sd_l, float).ravel(), make_T(np.asarray(R), np.asarray(t).ravel())
+        return exact, np.asarray(sd_l, float).ravel()
 
     def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tips: ArrayLike, *,
               T_target: ArrayLike | None = None,
               p_object_tips_goal: ArrayLike | None = None) -> InGraspResult:
         """Repose the object from the grasp (`q` (n,), `T_palm_object` (4, 4)) whose tip-sphere centres are
-        `p_object_tips` (m, 3) (object frame, m), towards `T_target` (4, 4) (method "pose") or so that the
+        `p_object_tips` (m, 3) (object frame, m), towards `T_target` (4, 4) (method "svd") or so that the
         goal tip centres `p_object_tips_goal` (m, 3) enter the fingers' workspaces (method "sd").
 
-        Method "pose": a target beyond the trust region is moved onto it; if the tips then slide more than
+        Method "svd": a target beyond the trust region is moved onto it; if the tips then slide more than
         `max_slip` (fingers that cannot follow a large move), the move is tried again towards a target
         half and a quarter as far."""
         q = np.asarray(q, float)
         T0 = np.asarray(T_palm_object, float)
         c_tips = np.asarray(p_object_tips, float).reshape(self._m, 3)
         fk = self.hand.fk(q)  # the grasp's data, the same for every try below
-        R_tips = np.stack([(T0[:3, :3].T @ fk[self.hand.tip_links[f]][:3, :3]).ravel(order="F")
-                           for f in self.hand.fingers], axis=1)
+        R_tips = np.hstack([T0[:3, :3].T @ fk[self.hand.tip_links[f]][:3, :3] for f in self.hand.fingers])
         planes = [self.obj.local_planes(c[None], self._n_local) for c in c_tips]  # tips stay put on it
-        grasp = np.concatenate([T0[:3, :3].ravel(order="F"), T0[:3, 3], c_tips.T.ravel(order="F"),
-                                R_tips.ravel(order="F")])
-        tip_planes = np.concatenate([np.stack([N.ravel() for N, _ in planes], axis=1).ravel(order="F"),
-                                     np.stack([h.ravel() for _, h in planes], axis=1).ravel(order="F")])
+        grasp = {"R0_palm_object": T0[:3, :3], "t0_palm_object": T0[:3, 3], "p_object_tips": c_tips.T,
+                 "R_object_tips": R_tips,
+                 "normals_tips": np.stack([N.ravel() for N, _ in planes], axis=1),
+                 "offsets_tips": np.stack([h.ravel() for _, h in planes], axis=1)}
         if self.method == "sd":
             if p_object_tips_goal is None:
                 raise ValueError("method 'sd' needs p_object_tips_goal")
-            target = np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T.ravel(order="F")
-            return self._solve_once(q, c_tips, grasp, tip_planes, target)
+            target = {"p_object_tips_goal": np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T}
+            return self._solve_once(q, c_tips, grasp, target)
         if T_target is None:
-            raise ValueError("method 'pose' needs T_target")
+            raise ValueError("method 'svd' needs T_target")
         o = self.options
         T_far = _clip_pose(T0, np.asarray(T_target, float), o.max_translation,
                            2.0 * np.arctan(o.max_rotation))
         spent = (0.0, 0)
         for fraction in (1.0, 0.5, 0.25):
             T_try = interpolate_pose(T0, T_far, fraction)
-            target = np.concatenate([T_try[:3, :3].ravel(order="F"), T_try[:3, 3]])
-            res = self._solve_once(q, c_tips, grasp, tip_planes, target)
+            res = self._solve_once(q, c_tips, grasp, {"R_target": T_try[:3, :3], "t_target": T_try[:3, 3]})
             spent = (spent[0] + res.solve_time, spent[1] + res.iterations)
             if res.success or res.max_slip <= o.max_slip:
                 break
         return replace(res, solve_time=spent[0], iterations=spent[1])
 
-    def _solve_once(self, q, c_tips, grasp, tip_planes, target) -> InGraspResult:
-        """One move with the parameters in their NLP layout: `grasp` (R0, t0, tip centres, tip
-        orientations), `tip_planes` (normals, offsets) and `target` (pose or goal tip centres)."""
+    def _solve_once(self, q, c_tips, grasp: dict, target: dict) -> InGraspResult:
+        """One move; `grasp` (the start pose, tips and their local planes) and `target` (pose or goal tip
+        centres) are parameter blocks of `layout`."""
         o = self.options
-        hand = self.hand
 
         def params(delta):
-            return np.concatenate([grasp, delta, tip_planes, target])
+            return self.layout.pack(**grasp, delta_l=delta, **target)
 
-        x = np.concatenate([q, np.zeros(6)])
-        zeros = np.zeros(self._k + self._m)
-        exact, smooth, _ = self._exact_clearance(x, params(zeros))
-        delta = self._offsets(exact, smooth)
-        t_solve, iters = 0.0, 0
-        res = None
-        for _ in range(o.max_corrections + 1):
-            p = params(delta)
-            lam_x, lam_g = self._lam if self._lam is not None else (None, None)
-            res = _solver.solve(self._solver, x0=np.concatenate([q, np.zeros(6)]), p=p, lbx=self._lbx,
-                                ubx=self._ubx, lbg=self._lbg, ubg=self._ubg, lam_x0=lam_x, lam_g0=lam_g)
-            t_solve += res.time
-            iters += max(res.iterations, 0)
-            if not np.all(np.isfinite(res.x)):
-                break
-            x = np.clip(res.x, self._lbx, self._ubx)
-            if res.success:
-                self._lam = (res.lam_x, res.lam_g)
-            exact, smooth, _ = self._exact_clearance(x, p)
-            gap = exact - self._radii_all
+        x_start = np.concatenate([q, np.zeros(6)])
+
+        def solve_with(x, delta):  # every solve starts at the grasp (x_start), warm multipliers aside
+            return self.warm_start.solve(self._solver, self._bounds, x0=x_start, p=params(delta))
+
+        def done(distances) -> bool:
+            gap = distances[0] - self._radii_all  # exact distance − radius
             clear = np.min(gap[: self._k], initial=np.inf)
-            if clear >= 0.5 * o.beta and np.max(np.abs(gap[self._k:])) <= 5e-5:
-                break
-            delta = self._offsets(exact, smooth)
-        _, _, R_new, t_new = self._points(x, params(zeros))  # (`exact` is already at x)
+            return bool(clear >= 0.5 * o.beta and np.max(np.abs(gap[self._k:])) <= 5e-5)
+
+        zeros = np.zeros(self._k + self._m)
+        start = self._distances(x_start, params(zeros))
+        corr = _solver.correct_offsets(
+            solve_with, lambda x, delta: self._distances(x, params(delta)), done,
+            lambda x, distances, delta: self._offsets(*distances), offsets=self._offsets(*start),
+            x=x_start, evaluation=start, max_solves=o.max_corrections + 1,
+            accept=_solver.clipped_if_finite(self._bounds))
+        return self._result(corr, c_tips, params(zeros))
+
+    def _result(self, corr: _solver.Correction, c_tips: NDArray, p_zero: NDArray) -> InGraspResult:
+        """The move's result from the correction loop's last point, judged with the exact distances."""
+        o = self.options
+        x, exact = corr.x, corr.evaluation[0]
+        _, _, R_new, t_new = self._points(x, p_zero)  # (`exact` is already at x)
         T_new = make_T(np.asarray(R_new), np.asarray(t_new).ravel())
         surface_error = float(np.max(np.abs(exact[self._k:] - self.hand.tip_radius)))
         q_new = x[: self._n]
-        tips_obj = (hand.tip_positions(q_new) - T_new[:3, 3]) @ T_new[:3, :3]
+        tips_obj = (self.hand.tip_positions(q_new) - T_new[:3, 3]) @ T_new[:3, :3]
         max_slip = float(np.max(np.linalg.norm(tips_obj - c_tips, axis=1)))
         min_clear = float(np.min(exact[: self._k] - self._radii)) if self._k else float("inf")
         # accepted when the exact checks hold, whatever IPOPT's status (e.g. a converged point reported
         # as Search_Direction_Becomes_Too_Small is still a valid reposing)
         ok = bool(np.all(np.isfinite(x)) and min_clear >= 0.0 and max_slip <= o.max_slip
                   and surface_error <= 1e-4)
-        return InGraspResult(q=q_new, T_palm_object=T_new, status=res.status, success=ok,
-                             iterations=iters, solve_time=t_solve, max_slip=max_slip,
+        status = corr.result.status if corr.result is not None else "not_solved"
+        return InGraspResult(q=q_new, T_palm_object=T_new, status=status, success=ok,
+                             iterations=corr.iterations, solve_time=corr.solve_time, max_slip=max_slip,
                              min_clearance=min_clear, surface_error=surface_error)

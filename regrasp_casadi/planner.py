@@ -10,44 +10,48 @@ from __future__ import annotations
 
 import logging
 import time
-from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
-from typing import TYPE_CHECKING, Literal
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import TYPE_CHECKING, ClassVar, Literal, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.constants import ZETA
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
-from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions
+from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
 from regrasp_casadi.plan import Plan, PlanStep
+from regrasp_casadi.solver import NLPCache
 from regrasp_casadi.stability import holding_quality, torque_reference
-from regrasp_casadi.transforms import inv_T, kabsch, rotation_angle
+from regrasp_casadi.transforms import rotation_angle
 
 if TYPE_CHECKING:
     from regrasp_casadi.grasp import Grasp
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
 
-__all__ = ["PlannerOptions", "plan_regrasp", "gait_pattern", "clear_nlp_cache"]
+__all__ = ["PlannerOptions", "plan_regrasp", "gait_pattern", "clear_nlp_cache", "NLPCache"]
 
 _log = logging.getLogger(__name__)
 
 ProgressCallback = Callable[[int, int, float], None]
+_NLP = TypeVar("_NLP")
 
 
 @dataclass(frozen=True)
 class PlannerOptions:
-    """Options of `plan_regrasp`; the paper's values are the defaults (SI units)."""
+    """Options of `plan_regrasp`; the paper's values are the defaults (SI units).
+
+    The knobs of the two NLPs are their own options, held here (`finger_gait`, `in_grasp`); the common
+    ones can be given to `plan_regrasp` / `with_overrides` by name (``eta=0.008``, ``beta=...``), see
+    `OVERRIDES`.
+    """
 
     method: Literal["svd", "sd"] = "svd"
-    """OPT2's E_des: "svd" (target pose by Kabsch) or "sd" (distance to the workspace hulls)."""
-    zeta: float = 0.006
+    """OPT2's E_des: "svd" (target pose by Kabsch, `in_grasp.svd_target`) or "sd" (distance to the
+    workspace hulls)."""
+    zeta: float = ZETA
     """ζ, threshold on the largest contact error, m (paper: 6 mm)."""
-    eta: float = 0.01
-    """η, largest fingertip displacement of one gait, m (paper: 1 cm)."""
-    beta: float = 0.001
-    """β, clearance of the hand's non-tip spheres from the object, m (paper: 0.1 cm)."""
     max_iters: int = 50
     """Largest number of gait/reposing iterations (paper: 50)."""
     gait: tuple[str, ...] | None = None
@@ -57,10 +61,6 @@ class PlannerOptions:
     P, not yet moved in this iteration, whose lift leaves the other fingers with the largest
     force-closure margin (`stability.holding_quality`, μ = 0.5) — an answer to the paper's open
     problems of gait order and grasp stability."""
-    k_pos: float = 1000.0
-    """k1, weight of the relaxed-rigidity position term."""
-    k_orient: float = 10.0
-    """k2, weight of the relaxed-rigidity orientation term."""
     final_move: bool = True
     """Finish with in-grasp moves to the desired object pose (Algorithm 1, last lines)."""
     max_final_moves: int = 6
@@ -77,12 +77,51 @@ class PlannerOptions:
     """After this many iterations without progress the plan stops with status "stalled"."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
-    tau: float | None = None
-    """Temperature of the smooth signed distance (None: the object's default), m."""
-    surface_tol: float = 5e-5
-    """Exact-contact tolerance of OPT1's correction loop, m."""
-    print_level: int = 0
-    """IPOPT print level (0 = quiet)."""
+    finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)
+    """OPT1's options (η, β, exact-contact tolerance, ...)."""
+    in_grasp: InGraspOptions = field(default_factory=InGraspOptions)
+    """OPT2's options (k1, k2, β, trust region, ...)."""
+
+    OVERRIDES: ClassVar[dict[str, tuple[str, ...]]] = {
+        "eta": ("finger_gait",),
+        "surface_tol": ("finger_gait",),
+        "k_pos": ("in_grasp",),
+        "k_orient": ("in_grasp",),
+        "beta": ("finger_gait", "in_grasp"),
+        "tau": ("finger_gait", "in_grasp"),
+        "print_level": ("finger_gait", "in_grasp"),
+    }
+    """Keyword overrides that set fields of the NLPs' options: name → the sub-options that get it."""
+
+    def __post_init__(self) -> None:
+        if self.gait is not None:  # a list from the CLI or JSON: stored as a tuple
+            object.__setattr__(self, "gait", tuple(self.gait))
+
+    def with_overrides(self, **overrides) -> PlannerOptions:
+        """A copy with `overrides` applied: this class's own fields (``method="sd"``, ``max_iters=5``,
+        ``finger_gait=FingerGaitOptions(...)``) first, then the names of `OVERRIDES` (``eta=0.008``),
+        which set that field of each sub-options listed there.
+
+        Raises:
+            TypeError: for a name that is neither a field nor in `OVERRIDES`.
+        """
+        own = {k: v for k, v in overrides.items() if k not in self.OVERRIDES}
+        unknown = sorted(set(own) - {f.name for f in fields(self)})
+        if unknown:
+            raise TypeError(f"unknown planner options {unknown}; the options are "
+                            f"{[f.name for f in fields(self)] + list(self.OVERRIDES)}")
+        options = replace(self, **own)
+        for name, value in overrides.items():
+            for sub in self.OVERRIDES.get(name, ()):
+                options = replace(options, **{sub: replace(getattr(options, sub), **{name: value})})
+        return options
+
+    def to_dict(self) -> dict:
+        """The options as plain data (nested dicts for the NLPs' options; the gait as a list or None),
+        as written into `Plan.options`."""
+        opts = asdict(self)
+        opts["gait"] = list(opts["gait"]) if opts["gait"] is not None else None
+        return opts
 
 
 def gait_pattern(hand: Hand, contacts_object: NDArray[np.float64],
@@ -103,95 +142,207 @@ def gait_pattern(hand: Hand, contacts_object: NDArray[np.float64],
     return tuple(reversed(forward))
 
 
-# ---------------------------------------------------------------------------------------------------------
-# NLP cache: each NLP is built once per (hand, object, finger/method, options) and reused across plans.
-
-_CACHE: OrderedDict[tuple, object] = OrderedDict()
-_CACHE_SIZE = 64
+_DEFAULT_CACHE = NLPCache(max_size=64)
+"""The process-wide NLP cache of `plan_regrasp` calls that do not pass their own."""
 
 
 def clear_nlp_cache() -> None:
-    """Forget every cached NLP (they are rebuilt on the next plan)."""
-    _CACHE.clear()
+    """Forget every NLP of the process-wide cache (they are rebuilt on the next plan)."""
+    _DEFAULT_CACHE.clear()
 
 
-def _cached(key: tuple, build: Callable[[], object]) -> tuple[object, float]:
-    """The cached NLP for `key` (built on a miss) and the build time spent now, s."""
-    if key in _CACHE:
-        _CACHE.move_to_end(key)
-        return _CACHE[key], 0.0
-    t0 = time.perf_counter()
-    nlp = build()
-    _CACHE[key] = nlp
-    while len(_CACHE) > _CACHE_SIZE:
-        _CACHE.popitem(last=False)
-    return nlp, time.perf_counter() - t0
+class _ProgressWatch:
+    """Counts the iterations since the largest contact error last dropped by more than `stall_tol`."""
+
+    def __init__(self, options: PlannerOptions, error: float):
+        self.options = options
+        self.best = error
+        """The largest contact error at the last progress, m."""
+        self.stalled = 0
+        """Iterations since then."""
+
+    def update(self, error: float) -> None:
+        """Record the largest contact error (m) after an iteration."""
+        if error < self.best - self.options.stall_tol:
+            self.best, self.stalled = error, 0
+        else:
+            self.stalled += 1
+
+    @property
+    def escape(self) -> bool:
+        """Reposings should move towards the desired object pose (`stall_escape`)."""
+        return self.stalled >= self.options.stall_escape
+
+    @property
+    def exhausted(self) -> bool:
+        """The plan should stop as stalled (`stall_limit`)."""
+        return self.stalled >= self.options.stall_limit
 
 
 class _Run:
-    """State of one planning run: the steps so far, timing, and the NLPs it uses."""
+    """One planning run of Algorithm 1: the current grasp (q, T_palm_object), the steps so far, the NLPs
+    it uses, timing and solve counts; its methods are the algorithm's named steps."""
 
-    def __init__(self, hand: Hand, obj: ObjectModel, goal_contacts: NDArray, goal_tips: NDArray,
-                 options: PlannerOptions):
-        self.hand, self.obj, self.options = hand, obj, options
-        self.goal_contacts, self.goal_tips = goal_contacts, goal_tips
+    def __init__(self, grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, cache: NLPCache):
+        self.hand, self.obj, self.options, self.cache = grasp0.hand, grasp0.obj, options, cache
+        self.goal_contacts = np.asarray(grasp_goal.contacts_object, dtype=float)
+        self.goal_tips = np.asarray(grasp_goal.tip_centers_object, dtype=float)
+        self.T_palm_object_goal = np.asarray(grasp_goal.T_palm_object, dtype=float)
+        self.fingers = tuple(self.hand.fingers)
         self.steps: list[PlanStep] = []
         self.timing = {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0, "total": 0.0}
         self.solves = {"opt1": 0, "opt2": 0}
-        self.gait: tuple[str, ...] = tuple(hand.fingers)
-        self.com, self.length = torque_reference(obj.mesh)  # of the stability-aware gait order
-        o = options
-        self.gait_options = FingerGaitOptions(eta=o.eta, beta=o.beta, surface_tol=o.surface_tol, tau=o.tau,
-                                              print_level=o.print_level)
-        self.in_grasp_options = InGraspOptions(k_pos=o.k_pos, k_orient=o.k_orient, beta=o.beta, tau=o.tau,
-                                               print_level=o.print_level)
+        self.failures: list[str] = []  # rejected solves of the current iteration ("<what>: IPOPT <status>")
+        self.com, self.length = torque_reference(self.obj.mesh)  # of the stability-aware gait order
+        self.q = np.asarray(grasp0.q, dtype=float)
+        self.T_palm_object = np.asarray(grasp0.T_palm_object, dtype=float)
+        step = self.add_step("initial", None, "", 0.0)
+        self.errors = [float(np.mean(step.contact_error))]  # mean contact error after each iteration
+        self.iterations = 0
+        self.gait = options.gait or gait_pattern(self.hand, step.contacts_object, self.goal_contacts)
+        self.gait_nlps = {f: self.gait_nlp(f) for f in self.gait}
+        self.svd_nlp = self.in_grasp_nlp("svd")  # SVD reposing, stall escape and final moves
+        self.repose_nlp = self.svd_nlp if options.method == "svd" else self.in_grasp_nlp("sd")
+        for nlp in [*self.gait_nlps.values(), self.svd_nlp, self.repose_nlp]:
+            nlp.reset()  # same input, same plan: no warm start carried over from another plan
 
+    # ------------------------------------------------------------------------------------------ NLPs
     def gait_nlp(self, finger: str) -> FingerGaitNLP:
-        key = ("gait", id(self.hand), id(self.obj), finger, self.gait_options)
-        nlp, dt = _cached(key, lambda: FingerGaitNLP(self.hand, self.obj, finger, self.gait_options))
-        self.timing["build"] += dt
-        return nlp  # type: ignore[return-value]
+        o = self.options.finger_gait
+        return self.cache.get("finger_gait", self.hand, self.obj, (finger, o),
+                              self._timed(lambda: FingerGaitNLP(self.hand, self.obj, finger, o)))
 
     def in_grasp_nlp(self, method: str) -> InGraspNLP:
-        key = ("in_grasp", id(self.hand), id(self.obj), method, self.in_grasp_options)
-        nlp, dt = _cached(key, lambda: InGraspNLP(self.hand, self.obj, method, self.in_grasp_options))
-        self.timing["build"] += dt
-        return nlp  # type: ignore[return-value]
+        o = self.options.in_grasp
+        return self.cache.get("in_grasp", self.hand, self.obj, (method, o),
+                              self._timed(lambda: InGraspNLP(self.hand, self.obj, method, o)))
 
-    def most_stable_gait(self, q: NDArray, T_palm_object: NDArray, todo: list[str]) -> str:
-        """Remove and return the finger of `todo` whose lift leaves the best-held grasp."""
-        tips = self.tips_object(q, T_palm_object)
-        contacts, _ = self.obj.closest_points(tips)
-        fingers = list(self.hand.fingers)
-        eps = [holding_quality(contacts, tips, fingers.index(f), self.com, self.length) for f in todo]
-        return todo.pop(int(np.argmax(eps)))
+    def _timed(self, build: Callable[[], _NLP]) -> Callable[[], _NLP]:
+        """`build`, adding its time to the run's build time (a cache hit adds nothing)."""
 
-    def tips_object(self, q: NDArray, T_palm_object: NDArray) -> NDArray:
-        """Tip-sphere centres (m, 3) in the object frame."""
-        return (self.hand.tip_positions(q) - T_palm_object[:3, 3]) @ T_palm_object[:3, :3]
+        def timed_build() -> _NLP:
+            t0 = time.perf_counter()
+            nlp = build()
+            self.timing["build"] += time.perf_counter() - t0
+            return nlp
 
-    def add_step(self, kind: str, finger: str | None, q: NDArray, T_palm_object: NDArray, status: str,
-                 solve_time: float) -> PlanStep:
-        contacts, _ = self.obj.closest_points(self.tips_object(q, T_palm_object))
+        return timed_build
+
+    # ----------------------------------------------------------------------------------------- steps
+    def tips_object(self) -> NDArray:
+        """Tip-sphere centres (m, 3) of the current grasp, object frame."""
+        return (self.hand.tip_positions(self.q) - self.T_palm_object[:3, 3]) @ self.T_palm_object[:3, :3]
+
+    def add_step(self, kind: str, finger: str | None, status: str, solve_time: float) -> PlanStep:
+        """Append the current grasp as a step of `kind`, with its contacts and contact errors."""
+        contacts, _ = self.obj.closest_points(self.tips_object())
         error = np.linalg.norm(contacts - self.goal_contacts, axis=1)
-        step = PlanStep(kind=kind, finger=finger, q=np.array(q, dtype=float),
-                        T_palm_object=np.array(T_palm_object, dtype=float),
+        step = PlanStep(kind=kind, finger=finger, q=np.array(self.q, dtype=float),
+                        T_palm_object=np.array(self.T_palm_object, dtype=float),
                         contacts_object=np.asarray(contacts, dtype=float), contact_error=error,
                         solver_status=status, solve_time=float(solve_time))
         self.steps.append(step)
         return step
 
+    def largest_error(self) -> float:
+        """The largest contact error of the last step, m."""
+        return float(np.max(self.steps[-1].contact_error))
+
+    # ----------------------------------------------------------------------- Algorithm 1, named steps
+    def gait_round(self) -> None:
+        """One finger gait (OPT1) for each finger of the gait pattern not yet at its goal, in the
+        pattern's order or the stability order; a rejected gait leaves the finger where it is."""
+        todo = list(self.gait)
+        while todo:
+            finger = todo.pop(0) if self.options.gait_order == "pattern" else self._most_stable_gait(todo)
+            r = self.fingers.index(finger)
+            if self.steps[-1].contact_error[r] <= self.options.skip_tol:
+                continue
+            res = self.gait_nlps[finger].solve(self.q, self.T_palm_object, self.goal_tips[r])
+            self.timing["opt1"] += res.solve_time
+            self.solves["opt1"] += res.solves
+            if not res.success:  # the finger stays where it is, which is feasible
+                self.failures.append(f"finger gait of {finger} at step {len(self.steps)} rejected by the "
+                                     f"exact checks (surface error {res.surface_error * 1e3:.3f} mm, "
+                                     f"clearance {res.min_clearance * 1e3:.3f} mm; IPOPT: {res.status})")
+                _log.debug("%s; the finger stays", self.failures[-1])
+                continue
+            moved = np.linalg.norm(self.hand.tip_positions(res.q)[r] - self.hand.tip_positions(self.q)[r])
+            if moved < 1e-5:
+                continue
+            self.q = res.q
+            self.add_step("gait", finger, res.status, res.solve_time)
+
+    def _most_stable_gait(self, todo: list[str]) -> str:
+        """Remove and return the finger of `todo` whose lift leaves the best-held grasp."""
+        tips = self.tips_object()
+        contacts, _ = self.obj.closest_points(tips)
+        fingers = list(self.fingers)
+        eps = [holding_quality(contacts, tips, fingers.index(f), self.com, self.length) for f in todo]
+        return todo.pop(int(np.argmax(eps)))
+
+    def repose(self, escape: bool) -> None:
+        """One in-grasp reposing (OPT2) towards the method's target: the SVD target pose, the fingers'
+        workspaces, or (`escape`, after iterations without progress) the desired object pose; a
+        rejected reposing leaves the object where it is."""
+        nlp = self.repose_nlp
+        if escape:  # repose towards the desired object pose
+            nlp, target = self.svd_nlp, {"T_target": self.T_palm_object_goal}
+        elif self.options.method == "svd":
+            T_target = svd_target(self.T_palm_object, self.steps[-1].contacts_object, self.goal_contacts)
+            target = {"T_target": T_target}
+        else:
+            target = {"p_object_tips_goal": self.goal_tips}
+        res = nlp.solve(self.q, self.T_palm_object, self.tips_object(), **target)
+        self.timing["opt2"] += res.solve_time
+        self.solves["opt2"] += 1
+        if res.success:
+            self.q, self.T_palm_object = res.q, res.T_palm_object
+            self.add_step("repose", None, res.status, res.solve_time)
+        else:  # the object stays where it is
+            self.failures.append(f"reposing at step {len(self.steps)} rejected by the exact checks "
+                                 f"(clearance {res.min_clearance * 1e3:.3f} mm, slip "
+                                 f"{res.max_slip * 1e3:.3f} mm, surface error {res.surface_error * 1e3:.3f} "
+                                 f"mm; IPOPT: {res.status})")
+            _log.debug("%s; the object stays", self.failures[-1])
+
+    def final_moves(self) -> str:
+        """In-grasp moves (OPT2, SVD form) towards the desired object pose once the contacts are reached;
+        returns a note for the plan's status detail ("" unless a move was rejected)."""
+        o, T_goal = self.options, self.T_palm_object_goal
+        for _ in range(o.max_final_moves):
+            if _pose_distance(self.T_palm_object, T_goal, self.obj) <= o.final_pose_tol:
+                break
+            res = self.svd_nlp.solve(self.q, self.T_palm_object, self.tips_object(), T_target=T_goal)
+            self.timing["opt2"] += res.solve_time
+            self.solves["opt2"] += 1
+            if not res.success:  # the contacts are reached; the object stays where it is
+                return (f"; the final in-grasp move towards the desired pose was rejected by the "
+                        f"exact checks (slip {res.max_slip * 1e3:.2f} mm, clearance "
+                        f"{res.min_clearance * 1e3:.2f} mm; IPOPT: {res.status})")
+            progress_made = (_pose_distance(self.T_palm_object, T_goal, self.obj)
+                             - _pose_distance(res.T_palm_object, T_goal, self.obj))
+            self.q, self.T_palm_object = res.q, res.T_palm_object
+            self.add_step("final", None, res.status, res.solve_time)
+            if progress_made < 1e-4:
+                break
+        return ""
+
 
 def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | None = None,
-                 progress: ProgressCallback | None = None, **overrides) -> Plan:
+                 progress: ProgressCallback | None = None, cache: NLPCache | None = None,
+                 **overrides) -> Plan:
     """Plan an in-hand regrasp from `grasp0` to `grasp_goal` (Algorithm 1).
 
     Args:
         grasp0: the initial grasp; it must carry joint angles (`Grasp.from_joints`).
         grasp_goal: the desired grasp: contacts (object frame) and desired object pose.
-        options: a `PlannerOptions`; keyword `overrides` replace its fields (e.g. ``method="sd"``).
+        options: a `PlannerOptions`; keyword `overrides` replace its fields (e.g. ``method="sd"``) or
+            set the NLPs' options (e.g. ``eta=0.008``, see `PlannerOptions.with_overrides`).
         progress: optional callable ``progress(iteration, max_iters, average_error_m)`` called after
             every iteration.
+        cache: where the NLPs are kept between plans (default: the process-wide cache that
+            `clear_nlp_cache` clears).
 
     Returns:
         A `Plan` whose `status` says why it stopped: "converged", "iteration_limit", "stalled" (no
@@ -200,135 +351,68 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         so far.
     """
     t_start = time.perf_counter()
-    options = replace(options or PlannerOptions(), **overrides)
-    if options.gait is not None:
-        options = replace(options, gait=tuple(options.gait))
-    hand, obj = grasp0.hand, grasp0.obj
-    goal_contacts = np.asarray(grasp_goal.contacts_object, dtype=float)
-    goal_T = np.asarray(grasp_goal.T_palm_object, dtype=float)
-    fingers = tuple(hand.fingers)
-
-    def make_plan(run: _Run | None, status: str, detail: str, iterations: int, errors: list[float]) -> Plan:
-        steps = tuple(run.steps) if run else ()
-        timing = dict(run.timing) if run else {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0}
-        timing["total"] = time.perf_counter() - t_start
-        timing["other"] = max(0.0, timing["total"] - timing["build"] - timing["opt1"] - timing["opt2"])
-        opts = asdict(options)
-        opts["gait"] = list(opts["gait"]) if opts["gait"] is not None else None
-        if run is not None:
-            opts["gait_used"] = list(run.gait)
-            opts["solves"] = dict(run.solves)
-        return Plan(steps=steps, goal_contacts_object=goal_contacts, goal_T_palm_object=goal_T,
-                    fingers=fingers, hand_spec=hand.spec(), object_spec=dict(obj.spec), method=options.method,
-                    status=status, status_detail=detail, iterations=iterations,
-                    iteration_errors=np.asarray(errors, dtype=float), timing=timing, options=opts)
-
+    options = (options or PlannerOptions()).with_overrides(**overrides)
     problems = _check_input(grasp0, grasp_goal, options)
     if problems:
-        return make_plan(None, "invalid_input", problems, 0, [])
-
-    goal_tips = np.asarray(grasp_goal.tip_centers_object, dtype=float)
-    run = _Run(hand, obj, goal_contacts, goal_tips, options)
-    q = np.asarray(grasp0.q, dtype=float)
-    T = np.asarray(grasp0.T_palm_object, dtype=float)
-    step = run.add_step("initial", None, q, T, "", 0.0)
-    run.gait = options.gait or gait_pattern(hand, step.contacts_object, goal_contacts)
-    gait_nlps = {f: run.gait_nlp(f) for f in run.gait}
-    pose_nlp = run.in_grasp_nlp("pose")  # SVD reposing, stall escape and final moves
-    repose_nlp = pose_nlp if options.method == "svd" else run.in_grasp_nlp("sd")
-    for nlp in [*gait_nlps.values(), pose_nlp, repose_nlp]:
-        nlp.reset()  # same input, same plan: no warm start carried over from another plan
-    errors = [float(np.mean(step.contact_error))]
-    err = float(np.max(step.contact_error))
-    n = 0
-    failures: list[str] = []  # rejected solves of the current iteration ("<what>: IPOPT <status>")
-    best_err, stalled = err, 0  # progress watch: iterations since the largest error last dropped
-    while err > options.zeta and n < options.max_iters:
-        failures.clear()
+        return _make_plan(grasp0, grasp_goal, options, t_start, None, "invalid_input", problems)
+    run = _Run(grasp0, grasp_goal, options, _DEFAULT_CACHE if cache is None else cache)
+    watch = _ProgressWatch(options, run.largest_error())
+    while run.largest_error() > options.zeta and run.iterations < options.max_iters:
+        run.failures.clear()
         n_steps_before = len(run.steps)
-        todo = list(run.gait)
-        while todo:
-            finger = todo.pop(0) if options.gait_order == "pattern" else run.most_stable_gait(q, T, todo)
-            r = fingers.index(finger)
-            if run.steps[-1].contact_error[r] <= options.skip_tol:
-                continue
-            res = gait_nlps[finger].solve(q, T, goal_tips[r])
-            run.timing["opt1"] += res.solve_time
-            run.solves["opt1"] += res.solves
-            if not res.success:  # the finger stays where it is, which is feasible
-                failures.append(f"finger gait of {finger} at step {len(run.steps)} rejected by the exact "
-                                f"checks (surface error {res.surface_error * 1e3:.3f} mm, clearance "
-                                f"{res.min_clearance * 1e3:.3f} mm; IPOPT: {res.status})")
-                _log.debug("%s; the finger stays", failures[-1])
-                continue
-            moved = np.linalg.norm(hand.tip_positions(res.q)[r] - hand.tip_positions(q)[r])
-            if moved < 1e-5:
-                continue
-            q = res.q
-            run.add_step("gait", finger, q, T, res.status, res.solve_time)
-        err = float(np.max(run.steps[-1].contact_error))
-        if err > options.zeta:
-            tips = run.tips_object(q, T)
-            nlp = repose_nlp
-            if stalled >= options.stall_escape:  # escape: repose towards the desired object pose
-                nlp, target = pose_nlp, {"T_target": goal_T}
-            elif options.method == "svd":
-                T_rel = kabsch(run.steps[-1].contacts_object, goal_contacts)  # X_goal ≈ T_rel · X
-                target = {"T_target": T @ inv_T(T_rel)}  # so that o'·X_goal ≈ o·X
-            else:
-                target = {"p_object_tips_goal": goal_tips}
-            res2 = nlp.solve(q, T, tips, **target)
-            run.timing["opt2"] += res2.solve_time
-            run.solves["opt2"] += 1
-            if res2.success:
-                q, T = res2.q, res2.T_palm_object
-                step = run.add_step("repose", None, q, T, res2.status, res2.solve_time)
-                err = float(np.max(step.contact_error))
-            else:  # the object stays where it is
-                failures.append(f"reposing at step {len(run.steps)} rejected by the exact checks (clearance "
-                                f"{res2.min_clearance * 1e3:.3f} mm, slip {res2.max_slip * 1e3:.3f} mm, "
-                                f"surface error {res2.surface_error * 1e3:.3f} mm; IPOPT: {res2.status})")
-                _log.debug("%s; the object stays", failures[-1])
-        n += 1
-        errors.append(float(np.mean(run.steps[-1].contact_error)))
+        run.gait_round()
+        if run.largest_error() > options.zeta:
+            run.repose(escape=watch.escape)
+        run.iterations += 1
+        run.errors.append(float(np.mean(run.steps[-1].contact_error)))
         if progress is not None:
-            progress(n, options.max_iters, errors[-1])
-        if err < best_err - options.stall_tol:
-            best_err, stalled = err, 0
-        else:
-            stalled += 1
-            if stalled >= options.stall_limit:
-                if failures and len(run.steps) == n_steps_before:  # the last iteration could not move
-                    return make_plan(run, "solver_failure", "; ".join(failures), n, errors)
-                return make_plan(run, "stalled", f"largest contact error {err * 1e3:.2f} mm > ζ: no progress "
-                                 f"in the last {stalled} iterations", n, errors)
-    converged = err <= options.zeta
+            progress(run.iterations, options.max_iters, run.errors[-1])
+        watch.update(run.largest_error())
+        if watch.exhausted:
+            if run.failures and len(run.steps) == n_steps_before:  # the last iteration could not move
+                return _make_plan(grasp0, grasp_goal, options, t_start, run, "solver_failure",
+                                  "; ".join(run.failures))
+            return _make_plan(grasp0, grasp_goal, options, t_start, run, "stalled",
+                              f"largest contact error {run.largest_error() * 1e3:.2f} mm > ζ: no progress in "
+                              f"the last {watch.stalled} iterations")
+    return _finish(grasp0, grasp_goal, options, t_start, run)
+
+
+def _finish(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run) -> Plan:
+    """The plan of a run whose iterations ended: the final moves if the contacts are reached, then
+    "converged" or "iteration_limit"."""
     final_note = ""
-    if options.final_move and converged:
-        for _ in range(options.max_final_moves):
-            if _pose_distance(T, goal_T, obj) <= options.final_pose_tol:
-                break
-            res3 = pose_nlp.solve(q, T, run.tips_object(q, T), T_target=goal_T)
-            run.timing["opt2"] += res3.solve_time
-            run.solves["opt2"] += 1
-            if not res3.success:  # the contacts are reached; the object stays where it is
-                final_note = (f"; the final in-grasp move towards the desired pose was rejected by the "
-                              f"exact checks (slip {res3.max_slip * 1e3:.2f} mm, clearance "
-                              f"{res3.min_clearance * 1e3:.2f} mm; IPOPT: {res3.status})")
-                break
-            progress_made = _pose_distance(T, goal_T, obj) - _pose_distance(res3.T_palm_object, goal_T, obj)
-            q, T = res3.q, res3.T_palm_object
-            run.add_step("final", None, q, T, res3.status, res3.solve_time)
-            if progress_made < 1e-4:
-                break
-        err = float(np.max(run.steps[-1].contact_error))
-        converged = err <= options.zeta
-    if converged:
+    if options.final_move and run.largest_error() <= options.zeta:
+        final_note = run.final_moves()
+    err = run.largest_error()
+    if err <= options.zeta:
+        pose_error = _pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj)
         detail = (f"largest contact error {err * 1e3:.2f} mm ≤ ζ = {options.zeta * 1e3:.1f} mm; object "
-                  f"{_pose_distance(T, goal_T, obj) * 1e3:.2f} mm from the desired pose{final_note}")
-        return make_plan(run, "converged", detail, n, errors)
-    return make_plan(run, "iteration_limit",
-                     f"largest contact error {err * 1e3:.2f} mm > ζ after {n} iterations", n, errors)
+                  f"{pose_error * 1e3:.2f} mm from the desired pose{final_note}")
+        return _make_plan(grasp0, grasp_goal, options, t_start, run, "converged", detail)
+    return _make_plan(grasp0, grasp_goal, options, t_start, run, "iteration_limit",
+                      f"largest contact error {err * 1e3:.2f} mm > ζ after {run.iterations} iterations")
+
+
+def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run | None,
+               status: str, detail: str) -> Plan:
+    """The `Plan` of a run (None: no run, e.g. invalid input), with its timing and the options used."""
+    hand, obj = grasp0.hand, grasp0.obj
+    timing = dict(run.timing) if run else {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0}
+    timing["total"] = time.perf_counter() - t_start
+    timing["other"] = max(0.0, timing["total"] - timing["build"] - timing["opt1"] - timing["opt2"])
+    opts = options.to_dict()
+    if run is not None:
+        opts["gait_used"] = list(run.gait)
+        opts["solves"] = dict(run.solves)
+    return Plan(steps=tuple(run.steps) if run else (),
+                goal_contacts_object=np.asarray(grasp_goal.contacts_object, dtype=float),
+                goal_T_palm_object=np.asarray(grasp_goal.T_palm_object, dtype=float),
+                fingers=tuple(hand.fingers), hand_spec=hand.spec(), object_spec=dict(obj.spec),
+                method=options.method, status=status, status_detail=detail,
+                iterations=run.iterations if run else 0,
+                iteration_errors=np.asarray(run.errors if run else [], dtype=float), timing=timing,
+                options=opts)
 
 
 def _pose_distance(T_a: NDArray, T_b: NDArray, obj: ObjectModel) -> float:
@@ -353,6 +437,8 @@ def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> s
         unknown = [f for f in options.gait if f not in grasp0.hand.fingers]
         if unknown:
             return f"gait names unknown fingers {unknown}; the hand has {list(grasp0.hand.fingers)}"
-    if not (options.zeta > 0 and options.eta > 0 and options.beta >= 0 and options.max_iters >= 0):
+    gait, in_grasp = options.finger_gait, options.in_grasp
+    if not (options.zeta > 0 and gait.eta > 0 and gait.beta >= 0 and in_grasp.beta >= 0
+            and options.max_iters >= 0):
         return "zeta and eta must be positive, beta and max_iters non-negative"
     return grasp0.inconsistency("grasp0")

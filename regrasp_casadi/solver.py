@@ -1,25 +1,137 @@
-"""IPOPT through CasADi: the options the NLPs share and a guarded solve that never raises.
+"""The one home of solving: the NLP backend and its options, the parameter layout, a guarded solve with
+its success test, the warm-start policy and the exact-offset correction loop.
 
-A failed solve is a status, not an exception: `solve` maps IPOPT's `return_status` into `SolveResult`.
+Every NLP of the package is built by `build_solver` (and kept in an `NLPCache`), so swapping IPOPT for
+another CasADi `nlpsol` plugin is a change of this file only (`BACKEND` and `backend_options`). A failed
+solve is a status, not an exception: `solve` maps the backend's `return_status` into `SolveResult`.
+
+    >>> layout = ParamLayout([("R_palm_object", (3, 3)), ("t_palm_object", (3,))])
+    >>> p_sym, blocks = layout.symbols()                       # CasADi symbols, one per block
+    >>> solver = build_solver("my_nlp", {"x": x, "p": p_sym, "f": f, "g": g}, SolverOptions())
+    >>> res = solve(solver, x0=x0, p=layout.pack(R_palm_object=R, t_palm_object=t), **bounds.kwargs())
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from collections import OrderedDict
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
+from typing import Any, Generic, TypeVar
 
 import casadi as ca
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["SolveResult", "ipopt_options", "solve", "SUCCESS_STATUSES"]
+__all__ = [
+    "BACKEND",
+    "SUCCESS_STATUSES",
+    "SolverOptions",
+    "backend_options",
+    "build_solver",
+    "Bounds",
+    "SolveResult",
+    "succeeded",
+    "solve",
+    "WarmStart",
+    "ParamLayout",
+    "Correction",
+    "correct_offsets",
+    "clipped_if_finite",
+    "NLPCache",
+]
 
 _log = logging.getLogger(__name__)
 
+BACKEND = "ipopt"
+"""The CasADi `nlpsol` plugin every NLP of the package is built with."""
+
 SUCCESS_STATUSES = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+"""Return statuses of the backend that count as a successful solve."""
 
 
+# ------------------------------------------------------------------------------------ backend, options
+@dataclass(frozen=True)
+class SolverOptions:
+    """Backend-neutral knobs of one NLP's solver; `backend_options` translates them (None: the backend's
+    own default)."""
+
+    print_level: int = 0
+    """Verbosity (0 = quiet)."""
+    max_iter: int = 300
+    """Largest number of iterations of one solve."""
+    tol: float = 1e-8
+    """Convergence tolerance (scaled NLP error)."""
+    acceptable_tol: float | None = 1e-6
+    """Tolerance of an "acceptable" solution, reached for `acceptable_iter` iterations."""
+    acceptable_iter: int | None = 10
+    """Iterations at the acceptable level after which the solve stops as acceptable."""
+    constr_viol_tol: float = 1e-6
+    """Absolute tolerance on the constraint violation."""
+    warm_start: bool = True
+    """Start from the given primal and dual point (small initial barrier, no bound push)."""
+    bound_relax_factor: float | None = None
+    """Relaxation of the variable and constraint bounds (0: bounds hold exactly)."""
+    linear_solver: str | None = "mumps"
+    """Sparse linear solver of the Newton steps."""
+
+
+def backend_options(options: SolverOptions) -> dict:
+    """The `nlpsol` options dict of `BACKEND` (IPOPT: exact Hessian, adaptive barrier) for `options`."""
+    o = options
+    opts: dict = {
+        "print_time": False,
+        "ipopt.print_level": o.print_level,
+        "ipopt.sb": "yes",
+        "ipopt.max_iter": o.max_iter,
+        "ipopt.tol": o.tol,
+    }
+    if o.acceptable_tol is not None:
+        opts["ipopt.acceptable_tol"] = o.acceptable_tol
+    if o.acceptable_iter is not None:
+        opts["ipopt.acceptable_iter"] = o.acceptable_iter
+    opts["ipopt.constr_viol_tol"] = o.constr_viol_tol
+    if o.bound_relax_factor is not None:
+        opts["ipopt.bound_relax_factor"] = o.bound_relax_factor
+    opts["ipopt.mu_strategy"] = "adaptive"
+    if o.linear_solver is not None:
+        opts["ipopt.linear_solver"] = o.linear_solver
+    if o.warm_start:
+        opts.update({
+            "ipopt.warm_start_init_point": "yes",
+            "ipopt.warm_start_bound_push": 1e-9,
+            "ipopt.warm_start_mult_bound_push": 1e-9,
+            "ipopt.mu_init": 1e-4,
+        })
+    return opts
+
+
+def build_solver(name: str, nlp: dict, options: SolverOptions | None = None) -> ca.Function:
+    """Build the solver of `nlp` ({"x", "p", "f", "g"} CasADi expressions) with `BACKEND`; `name` names
+    the CasADi function (it shows in profiles and in `solver.name()`)."""
+    return ca.nlpsol(name, BACKEND, nlp, backend_options(options or SolverOptions()))
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """Bounds of an NLP: lbx ≤ x ≤ ubx, lbg ≤ g(x, p) ≤ ubg (±inf for none)."""
+
+    lbx: NDArray[np.float64]
+    """(n_x,) lower bounds of the decision variables."""
+    ubx: NDArray[np.float64]
+    """(n_x,) upper bounds of the decision variables."""
+    lbg: NDArray[np.float64]
+    """(n_g,) lower bounds of the constraints."""
+    ubg: NDArray[np.float64]
+    """(n_g,) upper bounds of the constraints."""
+
+    def kwargs(self) -> dict[str, NDArray[np.float64]]:
+        """The bounds as keyword arguments of `solve`."""
+        return {"lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}
+
+
+# ------------------------------------------------------------------------------------ solve, success
 @dataclass(frozen=True)
 class SolveResult:
     """The outcome of one NLP solve."""
@@ -35,43 +147,26 @@ class SolveResult:
     g: NDArray[np.float64]
     """Constraint values (n_g,)."""
     status: str
-    """IPOPT's return_status, e.g. "Solve_Succeeded", or "exception: ..." if CasADi raised."""
+    """The backend's return_status, e.g. "Solve_Succeeded", or "exception: ..." if CasADi raised."""
     iterations: int
-    """IPOPT iterations."""
+    """Backend iterations (-1 when unknown)."""
     time: float
     """Wall time of the call, s."""
 
     @property
     def success(self) -> bool:
-        return self.status in SUCCESS_STATUSES
+        """The success test: the backend reports a (possibly acceptable) optimum."""
+        return succeeded(self.status)
 
 
-def ipopt_options(print_level: int = 0, max_iter: int = 300, warm: bool = True, tol: float = 1e-8) -> dict:
-    """IPOPT options for the small, dense NLPs of the planner (exact Hessian, MUMPS)."""
-    opts = {
-        "print_time": False,
-        "ipopt.print_level": print_level,
-        "ipopt.sb": "yes",
-        "ipopt.max_iter": max_iter,
-        "ipopt.tol": tol,
-        "ipopt.acceptable_tol": 1e-6,
-        "ipopt.acceptable_iter": 10,
-        "ipopt.constr_viol_tol": 1e-6,
-        "ipopt.mu_strategy": "adaptive",
-        "ipopt.linear_solver": "mumps",
-    }
-    if warm:
-        opts.update({
-            "ipopt.warm_start_init_point": "yes",
-            "ipopt.warm_start_bound_push": 1e-9,
-            "ipopt.warm_start_mult_bound_push": 1e-9,
-            "ipopt.mu_init": 1e-4,
-        })
-    return opts
+def succeeded(status: str) -> bool:
+    """Whether a return status counts as a successful solve (one of `SUCCESS_STATUSES`)."""
+    return status in SUCCESS_STATUSES
 
 
 def solve(solver: ca.Function, *, x0, p, lbx, ubx, lbg, ubg, lam_x0=None, lam_g0=None) -> SolveResult:
-    """Call an `nlpsol` solver; return a `SolveResult` whatever happens (never raises on a failed solve)."""
+    """Call a `build_solver` solver; return a `SolveResult` whatever happens (never raises on a failed
+    solve)."""
     args = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
     if lam_x0 is not None:
         args["lam_x0"] = lam_x0
@@ -103,3 +198,248 @@ def solve(solver: ca.Function, *, x0, p, lbx, ubx, lbg, ubg, lam_x0=None, lam_g0
         iterations=iterations,
         time=elapsed,
     )
+
+
+class WarmStart:
+    """The warm-start policy of a re-solved NLP: the multipliers of the last successful solve (with a
+    finite solution) start the next one; a failed solve leaves them as they were.
+
+        >>> warm = WarmStart()
+        >>> res = warm.solve(solver, bounds, x0=x0, p=p)   # cold the first time, warm afterwards
+        >>> warm.reset()                                     # e.g. before a new plan: reproducible plans
+    """
+
+    def __init__(self) -> None:
+        self._lam: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+
+    def reset(self) -> None:
+        """Forget the multipliers: the next solve starts cold."""
+        self._lam = None
+
+    @property
+    def is_warm(self) -> bool:
+        """Whether the next solve starts from stored multipliers."""
+        return self._lam is not None
+
+    def solve(self, solver: ca.Function, bounds: Bounds, *, x0, p) -> SolveResult:
+        """`solve` with the stored multipliers (if any); keeps the new ones when the solve succeeded."""
+        lam_x, lam_g = self._lam if self._lam is not None else (None, None)
+        res = solve(solver, x0=x0, p=p, **bounds.kwargs(), lam_x0=lam_x, lam_g0=lam_g)
+        if res.success and np.all(np.isfinite(res.x)):
+            self._lam = (res.lam_x, res.lam_g)
+        return res
+
+
+# ------------------------------------------------------------------------------------ parameter layout
+class ParamLayout:
+    """The layout of an NLP's parameter vector p: named blocks with shapes, in order.
+
+    Each block enters p column-major (CasADi's `vec`, numpy's ``order="F"``): `pack` is the one place
+    where numeric values are put in that order, and `symbols` gives the CasADi symbols, one per block
+    with the block's shape, so the NLP's expressions index blocks by name instead of by offset.
+
+    Args:
+        blocks: (name, shape) pairs in p's order; a shape is (n,) or (rows, cols).
+    """
+
+    def __init__(self, blocks: Sequence[tuple[str, tuple[int, ...]]]):
+        shapes: dict[str, tuple[int, ...]] = {}
+        for name, shape in blocks:
+            shape = tuple(int(s) for s in shape)
+            if name in shapes:
+                raise ValueError(f"parameter block {name!r} appears twice")
+            if len(shape) not in (1, 2) or min(shape) < 0:
+                raise ValueError(f"parameter block {name!r}: shape {shape} is not (n,) or (rows, cols)")
+            shapes[name] = shape
+        self.shapes = shapes
+        """Block name → shape, in p's order."""
+        self.slices: dict[str, slice] = {}
+        """Block name → its slice of p."""
+        start = 0
+        for name, shape in shapes.items():
+            size = int(np.prod(shape))
+            self.slices[name] = slice(start, start + size)
+            start += size
+        self.size = start
+        """Length of p."""
+
+    def symbols(self, kind: type = ca.SX) -> tuple[ca.SX, dict[str, ca.SX]]:
+        """CasADi symbols of `kind` (ca.SX or ca.MX): the vector p (size,) and, per block, a symbol of
+        the block's shape, named after it; p is their column-major concatenation."""
+        blocks = {name: kind.sym(name, *shape) for name, shape in self.shapes.items()}
+        return ca.vertcat(*[ca.vec(b) for b in blocks.values()]), blocks
+
+    def pack(self, **values: ArrayLike) -> NDArray[np.float64]:
+        """The numeric p (size,) of one value per block; each must have its block's shape exactly.
+
+        Raises:
+            ValueError: naming the block that is missing, unknown or of the wrong shape.
+        """
+        missing = [name for name in self.shapes if name not in values]
+        unknown = [name for name in values if name not in self.shapes]
+        if missing or unknown:
+            raise ValueError(f"parameter blocks missing {missing}, unknown {unknown}; the layout has "
+                             f"{list(self.shapes)}")
+        parts = []
+        for name, shape in self.shapes.items():
+            value = np.asarray(values[name], dtype=float)
+            if value.shape != shape:
+                raise ValueError(f"parameter block {name!r}: expected shape {shape}, got {value.shape}")
+            parts.append(value.ravel(order="F"))
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def unpack(self, p: ArrayLike) -> dict[str, NDArray[np.float64]]:
+        """The blocks of a numeric p (size,), each with its shape (the inverse of `pack`)."""
+        p = np.asarray(p, dtype=float).ravel()
+        if p.size != self.size:
+            raise ValueError(f"parameter vector has {p.size} entries, the layout {self.size}")
+        return {name: p[self.slices[name]].reshape(shape, order="F") for name, shape in self.shapes.items()}
+
+
+# ------------------------------------------------------------------------------ exact-offset correction
+Offsets = TypeVar("Offsets")
+Evaluation = TypeVar("Evaluation")
+
+
+@dataclass(frozen=True)
+class Correction(Generic[Evaluation]):
+    """The outcome of `correct_offsets`."""
+
+    x: NDArray[np.float64]
+    """The last usable solution (the start point if no solve gave one)."""
+    evaluation: Evaluation
+    """`evaluate` at `x` (the start's evaluation if no solve gave a usable point)."""
+    result: SolveResult | None
+    """The last solve (None when no solve was made)."""
+    converged: bool
+    """`done` held at `x`."""
+    usable: bool
+    """False when the loop stopped at a solve without a usable point (`accept` returned None)."""
+    solves: int
+    """Number of solves."""
+    iterations: int
+    """Backend iterations over all solves."""
+    solve_time: float
+    """Wall time inside the solves, s."""
+
+
+def clipped_if_finite(bounds: Bounds) -> Callable[[SolveResult], NDArray[np.float64] | None]:
+    """An `accept` for `correct_offsets`: the solution clipped to the variable bounds when it is finite,
+    else None (whatever the status: the exact checks, not the solver, judge the point)."""
+
+    def accept(res: SolveResult) -> NDArray[np.float64] | None:
+        if not np.all(np.isfinite(res.x)):
+            return None
+        return np.clip(res.x, bounds.lbx, bounds.ubx)
+
+    return accept
+
+
+def correct_offsets(
+    solve_with: Callable[[NDArray[np.float64], Offsets], SolveResult],
+    evaluate: Callable[[NDArray[np.float64], Offsets], Evaluation],
+    done: Callable[[Evaluation], bool],
+    new_offsets: Callable[[NDArray[np.float64], Evaluation, Offsets], Offsets],
+    *,
+    offsets: Offsets,
+    x: NDArray[np.float64],
+    evaluation: Evaluation,
+    max_solves: int,
+    accept: Callable[[SolveResult], NDArray[np.float64] | None],
+) -> Correction[Evaluation]:
+    """The exact-offset correction loop shared by the NLPs.
+
+    A smooth distance model s(x) stands in for the exact (non-smooth) mesh distance e(x) inside the NLP,
+    with an offset δ (a parameter) in each distance constraint, s(x) + δ. After each solve the exact
+    distances are evaluated at the solution and, unless they pass, new offsets (typically
+    δ = e(x) − s(x) there) are computed and the NLP solved again, so that at a fixed point the constraint
+    holds for the exact distance. One round:
+
+    1. ``res = solve_with(x, offsets)`` (x: the last usable solution, or the start);
+    2. ``x = accept(res)``: the usable point, or None to stop (e.g. a non-finite solution);
+    3. ``evaluation = evaluate(x, offsets)`` (exact and smooth distances at x);
+    4. stop if ``done(evaluation)``, else ``offsets = new_offsets(x, evaluation, offsets)``;
+
+    at most `max_solves` rounds. `offsets` and `evaluation` are whatever the NLP needs (δ, local planes,
+    a proximal centre, ...); `x` and `evaluation` are the start point and its evaluation.
+    """
+    res = None
+    converged, usable = False, True
+    solves, iterations, solve_time = 0, 0, 0.0
+    for _ in range(max_solves):
+        res = solve_with(x, offsets)
+        solves += 1
+        solve_time += res.time
+        iterations += max(res.iterations, 0)
+        x_new = accept(res)
+        if x_new is None:
+            usable = False
+            break
+        x = x_new
+        evaluation = evaluate(x, offsets)
+        if done(evaluation):
+            converged = True
+            break
+        offsets = new_offsets(x, evaluation, offsets)
+    return Correction(x=x, evaluation=evaluation, result=res, converged=converged, usable=usable,
+                      solves=solves, iterations=iterations, solve_time=solve_time)
+
+
+# ------------------------------------------------------------------------------------------ NLP cache
+NLP = TypeVar("NLP")
+
+
+class _Same:
+    """A key part that compares by identity and holds its object, so that while the key is cached the
+    object stays alive and its id cannot be reused by another."""
+
+    __slots__ = ("obj",)
+
+    def __init__(self, obj: Any):
+        self.obj = obj
+
+    def __hash__(self) -> int:
+        return id(self.obj)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Same) and other.obj is self.obj
+
+
+class NLPCache:
+    """Built NLPs, reused across plans: one per (kind, hand, object, key), the least recently used
+    dropped beyond `max_size`.
+
+    The hand and object are part of the key by identity (a new model is a new entry, even when equal
+    to a cached one) and are held by the cache until their entries are dropped or the cache is cleared.
+
+        >>> cache = NLPCache()
+        >>> nlp = cache.get("finger_gait", hand, obj, ("index", options), lambda: FingerGaitNLP(...))
+        >>> cache.clear()
+    """
+
+    def __init__(self, max_size: int = 64):
+        self.max_size = int(max_size)
+        """Largest number of NLPs kept."""
+        self.builds = 0
+        """Number of NLPs this cache has built."""
+        self._nlps: OrderedDict[tuple, Any] = OrderedDict()
+
+    def get(self, kind: str, hand: Any, obj: Any, key: Hashable, build: Callable[[], NLP]) -> NLP:
+        """The cached NLP of `kind` for (`hand`, `obj`, `key`); on a miss `build()` makes it."""
+        full_key = (kind, _Same(hand), _Same(obj), key)
+        if full_key in self._nlps:
+            self._nlps.move_to_end(full_key)
+            return self._nlps[full_key]
+        nlp = build()
+        self.builds += 1
+        self._nlps[full_key] = nlp
+        while len(self._nlps) > self.max_size:
+            self._nlps.popitem(last=False)
+        return nlp
+
+    def clear(self) -> None:
+        """Forget every NLP (and release the hands and objects they were built for)."""
+        self._nlps.clear()
+
+    def __len__(self) -> int:
+        return len(self._nlps)

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.constants import MU
+
 __all__ = [
     "FRICTION_EDGES", "contact_mu", "tangent_basis", "primitive_wrenches", "torque_scale",
     "force_closure_quality", "contact_normals", "holding_quality", "torque_reference",
@@ -85,7 +87,7 @@ def torque_scale(contacts: NDArray[np.float64], center: NDArray[np.float64] | No
 def force_closure_quality(
     contacts: NDArray[np.float64],
     normals: NDArray[np.float64],
-    mu: float | NDArray[np.float64] = 0.5,
+    mu: float | NDArray[np.float64] = MU,
     center: NDArray[np.float64] | None = None,
     length: float | None = None,
     n_edges: int = FRICTION_EDGES,
@@ -132,7 +134,7 @@ def contact_normals(contacts: NDArray[np.float64], tip_centers: NDArray[np.float
 
 
 def holding_quality(contacts: NDArray[np.float64], tip_centers: NDArray[np.float64], moving: int,
-                    center: NDArray[np.float64], length: float, mu: float = 0.5) -> float:
+                    center: NDArray[np.float64], length: float, mu: float = MU) -> float:
     """Force-closure margin ε of the contacts that hold the object while finger `moving` (a row index)
     is lifted for a gait; contacts and tip centres (m, 3), object frame, m; torques about `center`
     (3,), scaled by `length` (m)."""

@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi import constants
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
 
@@ -59,10 +60,10 @@ EXACT_TOL = 1e-9
 STEP_TOL = 1e-6
 """Slack on the gait step bound `eta`, m."""
 
-DEFAULT_ETA = 0.01
+DEFAULT_ETA = constants.ETA
 """Gait step bound verify judges by unless told otherwise (DESIGN.md: 1 cm), m."""
 
-DEFAULT_ZETA = 0.006
+DEFAULT_ZETA = constants.ZETA
 """Convergence threshold verify judges by unless told otherwise (DESIGN.md: 6 mm), m."""
 
 

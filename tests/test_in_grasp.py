@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from regrasp_casadi.in_grasp import InGraspNLP, workspace_hull
+from regrasp_casadi.in_grasp import InGraspNLP, svd_target, workspace_hull
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.transforms import exp_so3, inv_T, kabsch, make_T, rotation_angle, transform_points
 
@@ -21,7 +21,7 @@ def problem():
 
 @pytest.fixture(scope="module")
 def pose_nlp(problem):
-    return InGraspNLP(problem.hand, problem.obj, "pose")
+    return InGraspNLP(problem.hand, problem.obj, "svd")
 
 
 def _clearance(problem, q, T):
@@ -123,3 +123,17 @@ def test_kabsch_recovers_a_rigid_transform():
         src = rng.normal(size=(5, 3)) * 0.05
         dst = transform_points(T, src)
         assert np.allclose(kabsch(src, dst), T, atol=1e-12)
+
+
+def test_svd_target_brings_the_goal_contacts_where_the_contacts_are():
+    """For goal contacts that are a rigid motion of the current ones (object frame), the SVD target pose
+    puts every goal contact at its current contact's palm-frame position: T* X_goal = T X."""
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        T = make_T(exp_so3(rng.normal(size=3)), rng.normal(size=3) * 0.1)
+        contacts = rng.normal(size=(4, 3)) * 0.04
+        T_rel = make_T(exp_so3(rng.normal(size=3) * 0.3), rng.normal(size=3) * 0.02)
+        goal = transform_points(T_rel, contacts)
+        T_target = svd_target(T, contacts, goal)
+        assert np.allclose(transform_points(T_target, goal), transform_points(T, contacts), atol=1e-12)
+        assert np.allclose(T_target[:3, :3].T @ T_target[:3, :3], np.eye(3), atol=1e-12)

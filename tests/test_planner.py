@@ -5,16 +5,17 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from dataclasses import asdict, replace
+from dataclasses import replace
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pytest
 
+from regrasp_casadi.finger_gait import FingerGaitOptions
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.plan import Plan
-from regrasp_casadi.planner import PlannerOptions, gait_pattern, plan_regrasp
+from regrasp_casadi.planner import NLPCache, PlannerOptions, gait_pattern, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.transforms import inv_T, transform_points
 from regrasp_casadi.verify import verify
@@ -66,6 +67,14 @@ def test_no_rebuild_inside_a_plan(monkeypatch):
     assert len(second.steps) > 5
     assert len(built) == n_first, f"the second plan built {built[n_first:]}"
     assert second.timing["build"] == 0.0
+
+
+def test_a_plan_keeps_its_nlps_in_the_cache_it_is_given(box):
+    cache = NLPCache()
+    plan_regrasp(box.grasp0, box.grasp_goal, method="sd", max_iters=1, cache=cache)
+    assert cache.builds == len(box.hand.fingers) + 2  # OPT1 per finger, OPT2 "sd" and "svd" (final move)
+    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="sd", max_iters=1, cache=cache)
+    assert cache.builds == len(box.hand.fingers) + 2 and plan.timing["build"] == 0.0
 
 
 def test_same_input_same_plan(box):
@@ -181,10 +190,23 @@ def _gait_step_lengths(hand, plan) -> list[float]:
     return lengths
 
 
+def test_overrides_reach_the_nlp_options():
+    o = PlannerOptions().with_overrides(eta=0.008, beta=0.002, k_pos=50.0, method="sd", gait=["index"])
+    assert (o.finger_gait.eta, o.finger_gait.beta, o.in_grasp.beta, o.in_grasp.k_pos) == (0.008, 0.002,
+                                                                                          0.002, 50.0)
+    assert o.in_grasp.k_orient == 10.0 and o.method == "sd" and o.gait == ("index",)
+    assert PlannerOptions().finger_gait == FingerGaitOptions(eta=0.01, beta=0.001)  # the paper's η, β
+    assert (PlannerOptions().zeta, PlannerOptions().in_grasp.k_pos) == (0.006, 1000.0)  # ζ, k1
+    with pytest.raises(TypeError, match="max_iter"):
+        PlannerOptions().with_overrides(max_iter=3)
+
+
 def test_options_are_recorded_by_value_and_take_effect(box, tmp_path):
-    given = PlannerOptions(eta=0.008, zeta=0.005, gait=("thumb", "index", "middle", "ring"))
+    given = PlannerOptions(zeta=0.005, gait=("thumb", "index", "middle", "ring")).with_overrides(eta=0.008)
     plan = plan_regrasp(box.grasp0, box.grasp_goal, options=given, max_iters=1)
-    expected = {**asdict(given), "max_iters": 1, "gait": ["thumb", "index", "middle", "ring"]}
+    expected = {**given.to_dict(), "max_iters": 1}
+    assert expected["finger_gait"]["eta"] == 0.008
+    assert expected["gait"] == ["thumb", "index", "middle", "ring"]
     plan.save(tmp_path / "plan.json")
     for recorded in (plan.options, Plan.load(tmp_path / "plan.json").options):
         assert {k: recorded[k] for k in expected} == expected

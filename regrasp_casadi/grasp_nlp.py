@@ -1,0 +1,244 @@
+"""The grasp-synthesis NLP of grasp generation (`grasp_gen`) and its exact-distance correction.
+
+For tip-centre targets x_r + r_tip n_r (object frame) and a pose prior (R₀, t₀) and joint prior q_ref:
+
+    min_{q, δt, a}  Σ_r ||R(a)ᵀ(FK_r(q) − t) − (x_r + r_tip n_r)||² / s² + w_q ||q − q_ref||²
+                    + w_t ||δt||² / s² + w_a ||a||²
+    s.t.  sd(R(a)ᵀ(FK_r(q) − t)) + δ_r = r_tip                       (each fingertip r)
+          sd_c(R(a)ᵀ(c_k(q) − t)) + δ_k − ρ_k ≥ β + margin           (each non-tip sphere k)
+          q_lower ≤ q ≤ q_upper
+
+with t = t₀ + δt, R(a) = R₀·Cay(a) (Cayley map), sd the smooth signed distance of `ObjectModel`
+(τ = 2 mm), sd_c its coarse clearance variant (≤ 16 planes per piece) and δ = d_exact − sd at the previous
+solution (a local correction, `solver.correct_offsets`). Later rounds re-centre the pose prior and q_ref
+on the solution with large weights (a proximal step) and re-solve; once the spheres are clear and the
+tips within 2 mm, Newton steps on the exact distance (each finger's tip moved along its contact normal
+by a damped least-norm joint step) put the tips on the surface. The NLP is built once per (hand,
+object, β) and re-solved from different seeds.
+
+    >>> nlp = grasp_nlp(hand, obj, beta=0.001)
+    >>> solution, why_not = solve_exact(nlp, targets_obj, q0, T_palm_object0)
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from regrasp_casadi import solver as _solver
+from regrasp_casadi import terms
+from regrasp_casadi.hand import Hand
+from regrasp_casadi.objects import ObjectModel
+from regrasp_casadi.transforms import inv_T, make_T, transform_points
+
+__all__ = ["SURFACE_TOL", "GraspNLP", "GraspSolution", "grasp_nlp", "solve_exact"]
+
+log = logging.getLogger(__name__)
+
+SURFACE_TOL = 1e-4
+"""Allowed |exact distance of a tip centre − tip radius| of a generated grasp, m (0.1 mm)."""
+_MARGIN = 5e-4  # extra clearance demanded of the smooth distance of non-tip spheres, m
+_SCALE = 0.01  # length scale of the objective, m
+_CORRECTION_ROUNDS = 5
+_CLEARANCE_PLANES = 16  # planes per piece of the coarse distance used for the non-tip spheres
+_TAU = 2e-3  # smoothing temperature of the NLP's distance, m (the exact-minus-smooth offset removes its bias)
+_SOLVER_OPTIONS = _solver.SolverOptions(max_iter=400, tol=1e-10, acceptable_tol=None, acceptable_iter=None,
+                                        constr_viol_tol=1e-9, warm_start=False, bound_relax_factor=0.0,
+                                        linear_solver=None)
+"""Tight tolerances and exact bounds: a generated grasp is checked to 0.1 mm with the exact distance."""
+
+
+class GraspNLP:
+    """The grasp-synthesis NLP of the module docstring for one (hand, object, β); decision variables
+    x = (q (n,), δt (3,), a (3,)), parameters `layout`."""
+
+    def __init__(self, hand: Hand, obj: ObjectModel, beta: float):
+        self.hand, self.obj, self.beta = hand, obj, float(beta)
+        n, m = hand.n_joints, len(hand.fingers)
+        self.radii = np.asarray(hand.sphere_radii(None, include_tip=False), float)
+        k = len(self.radii)
+        self.n, self.m, self.k = n, m, k
+        # decision variables
+        q = ca.MX.sym("q", n)
+        dt = ca.MX.sym("dt", 3)
+        a = ca.MX.sym("a", 3)
+        x = ca.vertcat(q, dt, a)
+        # parameters
+        self.layout = _solver.ParamLayout([
+            ("R0", (3, 3)),  # pose prior: object rotation, palm frame
+            ("t0", (3,)),  # pose prior: object position, palm frame, m
+            ("targets", (3, m)),  # tip-centre targets (columns), object frame, m
+            ("delta_tip", (m,)),  # exact-distance offsets of the tips, m
+            ("delta_sph", (k,)),  # exact-distance offsets of the non-tip spheres, m
+            ("q_ref", (n,)),  # joint prior, rad
+            ("weights", (4,)),  # of the target, joint, translation and rotation terms
+        ])
+        p, P = self.layout.symbols(ca.MX)
+        R0, t0, targets, q_ref, weights = P["R0"], P["t0"], P["targets"], P["q_ref"], P["weights"]
+        R = ca.mtimes(R0, terms.cayley_rotation(a))
+        t = t0 + dt
+        tips_palm = hand.tip_positions_function()(q)
+        tips_obj = ca.mtimes(R.T, tips_palm - ca.repmat(t, 1, m))
+        sph_palm = hand.sphere_centers_function(None, include_tip=False)(q)
+        sph_obj = ca.mtimes(R.T, sph_palm - ca.repmat(t, 1, k))
+        sd_tip = obj.signed_distance_map_function(m, _TAU)(tips_obj)
+        sd_sph = obj.clearance_distance_function(_CLEARANCE_PLANES, _TAU).map(k)(sph_obj)
+        # objective
+        f = (weights[0] * ca.sumsqr(tips_obj - targets) / _SCALE**2
+             + weights[1] * ca.sumsqr(q - q_ref)
+             + weights[2] * ca.sumsqr(dt) / _SCALE**2
+             + weights[3] * ca.sumsqr(a))
+        # constraints
+        g_tip = sd_tip.T + P["delta_tip"] - hand.tip_radius
+        g_sph = sd_sph.T + P["delta_sph"] - ca.DM(self.radii)
+        g = ca.vertcat(g_tip, g_sph)
+        # bounds
+        self.lbg = np.concatenate([np.zeros(m), np.full(k, self.beta + _MARGIN)])
+        self.ubg = np.concatenate([np.zeros(m), np.full(k, np.inf)])
+        self.lbx = np.concatenate([hand.q_lower, np.full(3, -0.05), np.full(3, -0.5)])
+        self.ubx = np.concatenate([hand.q_upper, np.full(3, 0.05), np.full(3, 0.5)])
+        # solver
+        nlp = {"x": x, "p": p, "f": f, "g": g}
+        self.solver = _solver.build_solver("grasp_synthesis", nlp, _SOLVER_OPTIONS)
+        self.bounds = _solver.Bounds(self.lbx, self.ubx, self.lbg, self.ubg)
+        self.eval_points = ca.Function("grasp_points", [x, p], [tips_obj, sph_obj, sd_tip, sd_sph])
+
+    def pack(self, R0, t0, targets, delta_tip, delta_sph, q_ref, weights) -> NDArray[np.float64]:
+        """p of a solve; `targets` (m, 3) tip-centre targets, object frame, m (rows per finger)."""
+        return self.layout.pack(R0=R0, t0=t0, targets=np.asarray(targets).T, delta_tip=delta_tip,
+                                delta_sph=delta_sph, q_ref=q_ref, weights=weights)
+
+    def pose(self, x, R0, t0) -> NDArray[np.float64]:
+        """Object pose (4, 4), palm frame, at `x` for the pose prior (R0 (3, 3), t0 (3,))."""
+        C = np.asarray(terms.cayley_rotation(ca.DM(x[self.n + 3:])))
+        return make_T(R0 @ C, t0 + x[self.n:self.n + 3])
+
+    def solve(self, x0, p) -> _solver.SolveResult:
+        """One solve from `x0` with the parameters `p` (`pack`)."""
+        return _solver.solve(self.solver, x0=x0, p=p, **self.bounds.kwargs())
+
+
+_NLP_CACHE = _solver.NLPCache(max_size=8)
+"""The grasp NLPs, one per (hand, object, β)."""
+
+
+def grasp_nlp(hand: Hand, obj: ObjectModel, beta: float) -> GraspNLP:
+    """The grasp NLP of (`hand`, `obj`, `beta` m), built on first use and kept in a small cache."""
+    return _NLP_CACHE.get("grasp_synthesis", hand, obj, float(beta), lambda: GraspNLP(hand, obj, beta))
+
+
+@dataclass(frozen=True)
+class _Round:
+    """What one solve of the grasp NLP is given: the pose prior, the joint prior, the objective weights
+    and the exact-distance offsets."""
+
+    R0: NDArray[np.float64]
+    t0: NDArray[np.float64]
+    q_ref: NDArray[np.float64]
+    weights: NDArray[np.float64]  # target, joints, translation, rotation
+    delta_tip: NDArray[np.float64]
+    delta_sph: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class GraspSolution:
+    """The exact checks at one solution of the grasp NLP (after the Newton polish of the tips, if made)."""
+
+    x: NDArray[np.float64]
+    """Decision variables (q, δt, a), (n + 6,)."""
+    T_palm_object: NDArray[np.float64]
+    """Object pose, (4, 4) palm frame."""
+    ex_tip: NDArray[np.float64]
+    """Exact signed distances of the tip centres, (m,) m."""
+    ex_sph: NDArray[np.float64]
+    """Exact signed distances of the non-tip sphere centres, (k,) m."""
+    sd_tip: NDArray[np.float64]
+    """Smooth distances of the tip centres (no offsets), (m,) m."""
+    sd_sph: NDArray[np.float64]
+    """Smooth distances of the non-tip sphere centres (no offsets), (k,) m."""
+    ok: bool
+    """The tips are on the surface within `SURFACE_TOL` / 2 and the spheres clear β + 0.2 mm."""
+
+
+def solve_exact(nlp: GraspNLP, targets_obj: NDArray[np.float64], q0: NDArray[np.float64],
+                T0: NDArray[np.float64]) -> tuple[GraspSolution | None, str]:
+    """Solve the grasp NLP from (`q0` (n,) rad, `T0` (4, 4)) towards the tip-centre targets
+    `targets_obj` (m, 3) (object frame, m), with exact-distance offset corrections and proximal
+    re-centring, until the exact checks hold.
+
+    Returns:
+        The solution, or None and why: "nlp_<status>" (a solve failed) or "not_exact" (the checks did
+        not hold within the rounds).
+    """
+    hand, obj = nlp.hand, nlp.obj
+    r = hand.tip_radius
+
+    def params(rnd: _Round):
+        return nlp.pack(rnd.R0, rnd.t0, targets_obj, rnd.delta_tip, rnd.delta_sph, rnd.q_ref, rnd.weights)
+
+    def evaluate(x, rnd: _Round) -> GraspSolution:
+        tips_obj, sph_obj, sd_tip, sd_sph = (np.asarray(v) for v in nlp.eval_points(x, params(rnd)))
+        ex_tip = obj.exact_signed_distance(tips_obj.T)
+        ex_sph = obj.exact_signed_distance(sph_obj.T)
+        tip_ok = np.all(np.abs(ex_tip - r) <= 0.5 * SURFACE_TOL)
+        sph_ok = np.all(ex_sph - nlp.radii >= nlp.beta + 2e-4)
+        if sph_ok and not tip_ok and np.max(np.abs(ex_tip - r)) < 2e-3:
+            q_pol = _polish_tips(hand, obj, x[: nlp.n], nlp.pose(x, rnd.R0, rnd.t0))
+            if q_pol is not None:
+                x = np.concatenate([q_pol, x[nlp.n:]])
+                tip_ok = True
+        return GraspSolution(x, nlp.pose(x, rnd.R0, rnd.t0), ex_tip, ex_sph, sd_tip.ravel(), sd_sph.ravel(),
+                      bool(tip_ok and sph_ok))
+
+    def new_round(x, c: GraspSolution, rnd: _Round) -> _Round:
+        log.debug("tip error %.3g mm, min clearance %.3g mm", 1e3 * np.max(np.abs(c.ex_tip - r)),
+                  1e3 * np.min(c.ex_sph - nlp.radii))
+        # spheres near the object get the exact-minus-smooth offset (either sign); far ones only tighten
+        near = c.ex_sph - nlp.radii < 0.005
+        delta_sph = np.where(near, c.ex_sph - c.sd_sph, np.minimum(rnd.delta_sph, c.ex_sph - c.sd_sph))
+        # polish: re-centre the pose prior on the solution and pull q towards it (a proximal term), so
+        # the tips stay where the offsets were measured and the correction converges
+        T_cur = c.T_palm_object
+        return _Round(T_cur[:3, :3], T_cur[:3, 3], x[: nlp.n].copy(), np.array([0.01, 10.0, 10.0, 100.0]),
+                      c.ex_tip - c.sd_tip, delta_sph)
+
+    first = _Round(T0[:3, :3], T0[:3, 3], q0, np.array([1.0, 0.1, 1.0, 10.0]), np.zeros(nlp.m),
+                   np.zeros(nlp.k))
+    corr = _solver.correct_offsets(
+        lambda x, rnd: nlp.solve(np.concatenate([rnd.q_ref, np.zeros(6)]), params(rnd)), evaluate,
+        lambda c: c.ok, new_round, offsets=first, x=np.concatenate([q0, np.zeros(6)]), evaluation=None,
+        max_solves=_CORRECTION_ROUNDS, accept=lambda res: res.x if res.success else None)
+    if not corr.usable:
+        log.debug("grasp NLP round %d: %s", corr.solves - 1, corr.result.status)
+        return None, "nlp_" + corr.result.status
+    if not corr.converged:
+        return None, "not_exact"
+    return corr.evaluation, ""
+
+
+def _polish_tips(hand: Hand, obj: ObjectModel, q, T_palm_object, iters: int = 6):
+    """Newton steps on the exact distance: move each tip centre along its contact normal by
+    −(d_exact − r_tip) with a damped least-norm step of its finger's joints. Returns q, or None if the
+    tips do not reach `SURFACE_TOL` / 2 within joint limits."""
+    q = np.array(q, float)
+    T_object_palm = inv_T(T_palm_object)
+    R = np.asarray(T_palm_object)[:3, :3]
+    for _ in range(iters):
+        tips = transform_points(T_object_palm, np.asarray(hand.tip_positions(q)).reshape(-1, 3))
+        closest, d = obj.closest_points(tips)
+        err = np.asarray(d) - hand.tip_radius
+        if np.max(np.abs(err)) <= 0.5 * SURFACE_TOL:
+            return q
+        for i, f in enumerate(hand.fingers):
+            v = tips[i] - closest[i]
+            nv = np.linalg.norm(v)
+            n_obj = v / nv if nv > 1e-9 else obj.surface_normals(tips[i:i + 1])[0]
+            idx = np.asarray(hand.finger_joints[f])
+            J = np.asarray(hand.tip_jacobian(q, f))[:, idx]
+            dq = J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(3), -err[i] * (R @ n_obj))
+            q[idx] = np.clip(q[idx] + dq, np.asarray(hand.q_lower)[idx], np.asarray(hand.q_upper)[idx])
+    return None

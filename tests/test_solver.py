@@ -1,0 +1,176 @@
+"""solver.py: the parameter layout, the exact-offset correction loop, the warm-start policy and the NLP
+cache."""
+
+from __future__ import annotations
+
+import gc
+import weakref
+
+import casadi as ca
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from regrasp_casadi import solver
+from regrasp_casadi.solver import (
+    Bounds,
+    NLPCache,
+    ParamLayout,
+    SolverOptions,
+    WarmStart,
+    build_solver,
+    correct_offsets,
+)
+
+LAYOUT = ParamLayout([("q", (4,)), ("R_palm_object", (3, 3)), ("p_object_tips", (3, 2)), ("delta", (0,))])
+
+
+def _values(rng):
+    return {"q": rng.normal(size=4), "R_palm_object": rng.normal(size=(3, 3)),
+            "p_object_tips": rng.normal(size=(3, 2)), "delta": np.zeros(0)}
+
+
+def test_pack_puts_blocks_where_the_casadi_symbols_read_them():
+    """The numeric p of `pack`, fed to a CasADi function of the layout's symbols, gives back each block
+    (CasADi's own column-major `vec` is the independent reference)."""
+    p, blocks = LAYOUT.symbols()
+    assert p.shape == (LAYOUT.size, 1) and LAYOUT.size == 4 + 9 + 6
+    read = ca.Function("read", [p], list(blocks.values()))
+    values = _values(np.random.default_rng(0))
+    for got, want in zip(read(LAYOUT.pack(**values)), values.values(), strict=True):
+        assert np.array_equal(np.asarray(got).reshape(want.shape), want)
+
+
+def test_pack_is_column_major_and_unpack_inverts_it():
+    values = _values(np.random.default_rng(1))
+    p = LAYOUT.pack(**values)
+    # column-major = the rows of the transpose, concatenated
+    assert np.array_equal(p[4:13], values["R_palm_object"].T.reshape(-1))
+    assert np.array_equal(p[13:19], np.concatenate([values["p_object_tips"][:, 0],
+                                                    values["p_object_tips"][:, 1]]))
+    back = LAYOUT.unpack(p)
+    assert all(np.array_equal(back[k], v) for k, v in values.items())
+
+
+def test_pack_errors_name_the_block():
+    values = _values(np.random.default_rng(2))
+    with pytest.raises(ValueError, match=r"'p_object_tips': expected shape \(3, 2\), got \(2, 3\)"):
+        LAYOUT.pack(**{**values, "p_object_tips": values["p_object_tips"].T})
+    with pytest.raises(ValueError, match=r"missing \['q'\]"):
+        LAYOUT.pack(**{k: v for k, v in values.items() if k != "q"})
+    with pytest.raises(ValueError, match=r"unknown \['w'\]"):
+        LAYOUT.pack(**values, w=np.zeros(3))
+    with pytest.raises(ValueError, match="'q' appears twice"):
+        ParamLayout([("q", (2,)), ("q", (3,))])
+
+
+# ----------------------------------------------------------------------- the correction loop on a toy NLP
+# min (x − 2)²  s.t.  s(x) + δ = 1, with the smooth model s(x) = x, so the solution is x = 1 − δ.
+# The "exact" distance e(x) differs from the model; the loop must find the x where e(x) = 1.
+
+@pytest.fixture(scope="module")
+def toy():
+    x = ca.SX.sym("x")
+    delta = ca.SX.sym("delta")
+    nlp_solver = build_solver("toy", {"x": x, "p": delta, "f": (x - 2) ** 2, "g": x + delta},
+                              SolverOptions(warm_start=False))
+    bounds = Bounds(np.array([-10.0]), np.array([10.0]), np.array([1.0]), np.array([1.0]))
+    return nlp_solver, bounds
+
+
+def _run(toy, exact, max_solves=10, accept=None):
+    nlp_solver, bounds = toy
+
+    def solve_with(x, delta):
+        return solver.solve(nlp_solver, x0=x, p=delta, **bounds.kwargs())
+
+    def evaluate(x, delta):
+        return float(exact(x[0])), float(x[0])  # exact and smooth distance at x
+
+    return correct_offsets(solve_with, evaluate, lambda ev: abs(ev[0] - 1.0) <= 1e-10,
+                           lambda x, ev, delta: ev[0] - ev[1], offsets=0.0, x=np.array([0.0]),
+                           evaluation=evaluate(np.array([0.0]), 0.0), max_solves=max_solves,
+                           accept=accept or solver.clipped_if_finite(bounds))
+
+
+def test_correction_with_a_constant_bias_takes_two_solves(toy):
+    corr = _run(toy, lambda x: x + 0.3)  # the exact offset is 0.3 everywhere
+    assert corr.converged and corr.usable and corr.solves == 2
+    assert corr.x[0] == pytest.approx(0.7, abs=1e-9)
+    assert corr.result.success and corr.iterations >= 2
+
+
+def test_correction_reaches_the_exact_root(toy):
+    def exact(x):
+        return x + 0.3 + 0.2 * np.sin(3.0 * x)  # offset varies, |d offset/dx| ≤ 0.6 < 1: a contraction
+
+    corr = _run(toy, exact, max_solves=60)
+    assert corr.converged
+    assert corr.x[0] == pytest.approx(brentq(lambda x: exact(x) - 1.0, 0.0, 1.0), abs=1e-9)
+
+
+def test_correction_stops_after_max_solves_and_at_an_unusable_point(toy):
+    corr = _run(toy, lambda x: x + 0.3, max_solves=1)
+    assert not corr.converged and corr.usable and corr.solves == 1
+    assert corr.x[0] == pytest.approx(1.0, abs=1e-9)  # the first solve, with δ = 0
+    corr = _run(toy, lambda x: x + 0.3, accept=lambda res: None)
+    assert not corr.usable and corr.solves == 1 and corr.x[0] == 0.0 and corr.evaluation == (0.3, 0.0)
+
+
+def test_warm_start_keeps_the_multipliers_of_successful_solves_only(toy):
+    nlp_solver, bounds = toy
+    warm = WarmStart()
+    infeasible = Bounds(bounds.lbx, np.array([-5.0]), bounds.lbg, bounds.ubg)  # x ≤ −5 and x = 1
+    res = warm.solve(nlp_solver, infeasible, x0=np.array([0.0]), p=np.array([0.0]))
+    assert not res.success and not warm.is_warm
+    res = warm.solve(nlp_solver, bounds, x0=np.array([0.0]), p=np.array([0.0]))
+    assert res.success and warm.is_warm
+    warm.reset()
+    assert not warm.is_warm
+
+
+# ------------------------------------------------------------------------------------------- NLP cache
+class _Model:
+    """Stands for a Hand or ObjectModel (compared by identity, like them)."""
+
+
+def test_cache_builds_once_per_kind_models_and_key():
+    cache = NLPCache()
+    hand, obj = _Model(), _Model()
+    built = []
+
+    def build(tag):
+        return lambda: built.append(tag) or tag
+
+    assert cache.get("gait", hand, obj, "index", build("a")) == "a"
+    assert cache.get("gait", hand, obj, "index", build("b")) == "a"  # a hit: build not called
+    assert cache.get("gait", hand, _Model(), "index", build("c")) == "c"  # another object
+    assert cache.get("in_grasp", hand, obj, "index", build("d")) == "d"  # another kind
+    assert built == ["a", "c", "d"] and cache.builds == 3 and len(cache) == 3
+    cache.clear()
+    assert len(cache) == 0 and cache.get("gait", hand, obj, "index", build("e")) == "e"
+
+
+def test_cache_holds_its_models_until_cleared():
+    """A cached model cannot be collected, so its id cannot be reused by a new model while cached."""
+    cache = NLPCache()
+    obj = _Model()
+    alive = weakref.ref(obj)
+    cache.get("gait", _Model(), obj, None, lambda: "nlp")
+    del obj
+    gc.collect()
+    assert alive() is not None
+    cache.clear()
+    gc.collect()
+    assert alive() is None
+
+
+def test_cache_drops_the_least_recently_used():
+    cache = NLPCache(max_size=2)
+    hand, obj = _Model(), _Model()
+    for key in ("a", "b"):
+        cache.get("k", hand, obj, key, lambda key=key: key)
+    cache.get("k", hand, obj, "a", lambda: "rebuilt a")  # a hit: "a" is now the most recent
+    cache.get("k", hand, obj, "c", lambda: "c")  # drops "b"
+    assert cache.get("k", hand, obj, "a", lambda: "rebuilt a") == "a"
+    assert cache.get("k", hand, obj, "b", lambda: "rebuilt b") == "rebuilt b"
