@@ -1,0 +1,332 @@
+"""The joint targets that execute a plan on position-controlled fingers (used by `simulate`).
+
+    >>> t, q, T_palm_object = plan_motion(plan, dt=0.01)         # the plan's nominal motion
+    >>> t, q_cmd, T_palm_object = joint_commands(plan, hand, SimOptions(), mass=0.2, p_object_com=c)
+
+Two layers:
+
+* `plan_motion` — the plan's motion: between two steps the joints are linearly interpolated and the object
+  pose follows the geodesic; a step lasts max(`min_step_duration`, largest joint change /
+  `joint_velocity`). It is the stand-in for the trajectory issue's ``Plan.sample(dt)``.
+* `joint_commands` — adds what makes position servos hold the object:
+  **grip**: every fingertip that touches the object presses on it. With ``grip="balanced"`` (default) the
+  contact forces f_k (object frame) are the smallest ones (normal ≥ `grip_force`, inside the friction
+  cones shrunk to `grip_friction_fraction` · μ) whose wrench cancels gravity's on the object (a linear
+  program; with no force closure the residual is minimised and reported); the finger's targets are offset
+  by Jᵀ f / kp, so that the servo pushes with f while the tip sits at the planned contact (the tip is
+  commanded (J Jᵀ / kp) f ≈ 1–3 mm into the surface). With ``grip="squeeze"`` each touching tip is commanded
+  `squeeze_depth` into the surface along the contact normal (tip Jacobian solved by damped least squares).
+  **gait**: the moving finger first hands its load over to the others (the first `unload_fraction` of
+  the step), then moves (its joints along a smoothstep of the plan's interpolation, its tip raised
+  `lift_height` above the surface in mid-move, a sine profile along the contact normal), then takes its
+  load again (the last `unload_fraction`). The other fingers hold the planned object pose.
+
+Contact normal of a finger at a step = unit vector from its contact point to its tip-sphere centre
+(outward); a finger touches when that distance is within 1 mm of the tip radius.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linprog
+
+from regrasp_casadi.mujoco_model import SimOptions
+from regrasp_casadi.transforms import interpolate_pose
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.grasp import Plan
+
+__all__ = ["plan_motion", "step_durations", "step_end_times", "joint_commands", "grip_forces",
+           "StepContacts", "step_contacts", "CONTROL_DT"]
+
+CONTROL_DT = 5e-3
+"""Period at which the commanded joint targets are computed, s (linearly interpolated in between)."""
+_TOUCH_TOL = 1e-3    # m: a planned tip centre within this of tip_radius from its contact touches
+_DLS_DAMPING = 1e-3  # m: damping of the least-squares tip-Jacobian solve
+_SLACK_WEIGHT = 1e3  # weight of the wrench residual against the normal forces in the grip LP
+_TORQUE_FRACTION = 0.8  # share of the actuator torque limit the grip may use (the rest tracks motion)
+_TANGENT_WEIGHT = 0.3  # cost of 1 N of tangential force against 1 N of normal force (no needless shear)
+_TORQUE_LENGTH = 0.05   # m: torques are divided by it in the LP (comparable with forces)
+
+
+# ------------------------------------------------------------------------------------------ plan motion
+def step_durations(plan: Plan, joint_velocity: float = 1.0, min_step_duration: float = 0.2) -> NDArray:
+    """(s,) duration of each step's motion, s: 0 for step 0, else max(min_step_duration,
+    max_j |q_i,j − q_i−1,j| / joint_velocity)."""
+    Q = np.array([s.q for s in plan.steps], dtype=float)
+    dq = np.abs(np.diff(Q, axis=0)).max(axis=1) if len(Q) > 1 else np.zeros(0)
+    return np.concatenate([[0.0], np.maximum(min_step_duration, dq / joint_velocity)])
+
+
+def step_end_times(plan: Plan, joint_velocity: float = 1.0, min_step_duration: float = 0.2) -> NDArray:
+    """(s,) time at which each step's motion ends, s (step 0 at 0)."""
+    return np.cumsum(step_durations(plan, joint_velocity, min_step_duration))
+
+
+def _segments(t_end: NDArray, t: NDArray) -> tuple[NDArray, NDArray]:
+    """For times t (k,): the step i ≥ 1 being moved into and the phase s ∈ [0, 1] within it."""
+    if len(t_end) == 1:
+        return np.zeros(len(t), dtype=int), np.ones(len(t))
+    i = np.clip(np.searchsorted(t_end, t, side="left"), 1, len(t_end) - 1)
+    span = np.maximum(t_end[i] - t_end[i - 1], 1e-12)
+    return i, np.clip((t - t_end[i - 1]) / span, 0.0, 1.0)
+
+
+def plan_motion(plan: Plan, dt: float, joint_velocity: float = 1.0, min_step_duration: float = 0.2):
+    """The plan's motion sampled every ``dt`` s (stand-in for ``Plan.sample(dt)``).
+
+    Between two steps the joints are linearly interpolated and the object pose follows the geodesic
+    (`transforms.interpolate_pose`); step i ends at ``step_end_times(plan, ...)[i]``.
+
+    Returns:
+        t (k,) s, from 0 to the end of the last step (included); q (k, n) rad; T_palm_object (k, 4, 4).
+    """
+    t_end = step_end_times(plan, joint_velocity, min_step_duration)
+    t = np.arange(0.0, t_end[-1], dt)
+    if t.size == 0 or t[-1] < t_end[-1] - 1e-12:
+        t = np.append(t, t_end[-1])
+    i, s = _segments(t_end, t)
+    Q = np.array([st.q for st in plan.steps], dtype=float)
+    i0 = np.maximum(i - 1, 0)
+    q = Q[i0] + s[:, None] * (Q[i] - Q[i0])
+    T = np.stack([interpolate_pose(plan.steps[a].T_palm_object, plan.steps[b].T_palm_object, sk)
+                  for a, b, sk in zip(i0, i, s, strict=True)])
+    return t, q, T
+
+
+# ------------------------------------------------------------------------------------------ contacts
+@dataclass(frozen=True)
+class StepContacts:
+    """The planned contacts of one step, rows in ``plan.fingers`` order."""
+
+    touching: NDArray[np.bool_]
+    """(m,) the finger's tip sphere touches the object."""
+    p_object: NDArray[np.float64]
+    """(m, 3) contact points, object frame, m."""
+    n_object: NDArray[np.float64]
+    """(m, 3) outward unit contact normals, object frame."""
+    torque_per_force: NDArray[np.float64]
+    """(m, n, 3) joint torques (N·m) per unit tip force on the object (object frame, N): Jᵀ R_palm_object."""
+
+
+def step_contacts(plan: Plan, hand) -> list[StepContacts]:
+    """Per step: the fingers that touch and their contact normals (contact point -> tip centre)."""
+    rows = [list(hand.fingers).index(f) for f in plan.fingers]
+    out = []
+    for step in plan.steps:
+        T = np.asarray(step.T_palm_object)
+        p_object_tips = (hand.tip_positions(step.q)[rows] - T[:3, 3]) @ T[:3, :3]
+        p_contact = np.asarray(step.contacts_object, dtype=float)
+        v = p_object_tips - p_contact
+        dist = np.linalg.norm(v, axis=1)
+        touching = np.abs(dist - hand.tip_radius) < _TOUCH_TOL
+        tau = np.stack([hand.tip_jacobian(step.q, f).T @ T[:3, :3] for f in plan.fingers])
+        out.append(StepContacts(touching, p_contact, v / np.maximum(dist, 1e-12)[:, None], tau))
+    return out
+
+
+# ------------------------------------------------------------------------------------------ grip forces
+def _tangents(n: NDArray) -> tuple[NDArray, NDArray]:
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t1 = np.cross(n, a)
+    t1 /= np.linalg.norm(t1)
+    return t1, np.cross(n, t1)
+
+
+def _grip_lp(contacts: StepContacts, idx: NDArray, g_object: NDArray, mass: float, p_object_com: NDArray,
+             opts: SimOptions):
+    """Matrices of the grip LP in the variables (c_n, c_1, c_2) per holding finger, then 12 slacks."""
+    k = idx.size
+    nv = 3 * k + 12
+    mu = opts.grip_friction_fraction * opts.friction * np.cos(np.pi / 8)  # octagon inscribed in the cone
+    basis = [np.column_stack([-contacts.n_object[j], *_tangents(contacts.n_object[j])]) for j in idx]
+    A_eq = np.zeros((6, nv))
+    ub_rows, ub_rhs = [], []
+    for a, j in enumerate(idx):
+        r = contacts.p_object[j] - p_object_com
+        cross = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+        A_eq[:3, 3 * a:3 * a + 3] = basis[a]
+        A_eq[3:, 3 * a:3 * a + 3] = cross @ basis[a] / _TORQUE_LENGTH
+        for angle in np.arange(4) * np.pi / 4:  # |a_j · c_t| <= mu c_n
+            for sign in (1.0, -1.0):
+                row = np.zeros(nv)
+                row[3 * a:3 * a + 3] = [-mu, sign * np.cos(angle), sign * np.sin(angle)]
+                ub_rows.append(row)
+                ub_rhs.append(0.0)
+        M = contacts.torque_per_force[j] @ basis[a]  # joint torques per (c_n, c_1, c_2)
+        for m_row in M[np.abs(M).max(axis=1) > 0]:  # |torque| <= _TORQUE_FRACTION * force_limit
+            for sign in (1.0, -1.0):
+                row = np.zeros(nv)
+                row[3 * a:3 * a + 3] = sign * m_row
+                ub_rows.append(row)
+                ub_rhs.append(_TORQUE_FRACTION * opts.force_limit)
+    A_eq[:, 3 * k:3 * k + 6] = np.eye(6)
+    A_eq[:, 3 * k + 6:] = -np.eye(6)
+    b_eq = np.concatenate([-mass * np.asarray(g_object, dtype=float), np.zeros(3)])
+    return basis, A_eq, b_eq, np.array(ub_rows), np.array(ub_rhs)
+
+
+def grip_forces(contacts: StepContacts, holding: NDArray, g_object: NDArray, mass: float,
+                p_object_com: NDArray, opts: SimOptions) -> tuple[NDArray, float]:
+    """Fingertip forces on the object that hold it against gravity (a linear program).
+
+    For the fingers in ``holding``: minimise Σ normal force + 0.3 Σ |tangential components| + 1000 ·
+    |wrench residual|, with normal force ≥ ``opts.grip_force``, the tangential force in an octagonal
+    pyramid inscribed in the cone of ``opts.grip_friction_fraction · opts.friction``, and every joint
+    torque within 80 % of ``opts.force_limit``.
+
+    Args:
+        contacts: the step's contacts (object frame); holding: (m,) bool, fingers that press;
+        g_object: (3,) gravity in the object frame, m/s²; mass: kg; p_object_com: (3,) m.
+
+    Returns:
+        (forces (m, 3) on the object, object frame, N, zero for fingers not holding;
+         residual = |Σ f + m g| + |Σ (p − c) × f| / 5 cm, N: 0 when the contacts hold the object).
+    """
+    idx = np.flatnonzero(holding)
+    forces = np.zeros((len(holding), 3))
+    if idx.size == 0:
+        return forces, float(np.linalg.norm(mass * np.asarray(g_object)))
+    k = idx.size
+    basis, A_eq, b_eq, A_ub, b_ub = _grip_lp(contacts, idx, g_object, mass, p_object_com, opts)
+    # tangential components split into positive and negative parts: c_t = c_t+ − c_t−, both ≥ 0
+    P = np.zeros((3 * k + 12, 5 * k + 12))
+    for a in range(k):
+        P[3 * a:3 * a + 3, 5 * a:5 * a + 5] = [[1, 0, 0, 0, 0], [0, 1, -1, 0, 0], [0, 0, 0, 1, -1]]
+    P[3 * k:, 5 * k:] = np.eye(12)
+    cost = np.concatenate([np.tile([1.0, *[_TANGENT_WEIGHT] * 4], k), np.full(12, _SLACK_WEIGHT)])
+    bounds = [(opts.grip_force, None)] + [(0.0, None)] * 4
+    res = linprog(cost, A_ub=A_ub @ P if len(A_ub) else None, b_ub=b_ub if len(A_ub) else None,
+                  A_eq=A_eq @ P, b_eq=b_eq, bounds=bounds * k + [(0.0, None)] * 12, method="highs")
+    if res.status == 2 and len(A_ub):  # the torque limits exclude even the smallest grip: drop them
+        keep = np.flatnonzero(b_ub == 0.0)
+        res = linprog(cost, A_ub=A_ub[keep] @ P, b_ub=b_ub[keep], A_eq=A_eq @ P, b_eq=b_eq,
+                      bounds=bounds * k + [(0.0, None)] * 12, method="highs")
+    if res.status != 0:  # pragma: no cover - feasible by construction (slacks)
+        raise RuntimeError(f"grip force LP failed: {res.message}")
+    x = P @ res.x
+    for a, j in enumerate(idx):
+        forces[j] = basis[a] @ x[3 * a:3 * a + 3]
+    slack = x[3 * k:3 * k + 6]
+    return forces, float(np.linalg.norm(slack[:3]) + np.linalg.norm(slack[3:]))
+
+
+# ------------------------------------------------------------------------------------------ commands
+def _smoothstep(u: float) -> float:
+    u = min(max(u, 0.0), 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+@dataclass(frozen=True)
+class _Segment:
+    """What the fingers do while moving into step i: grip at start / mid (gait) / end, object frame."""
+
+    F0: NDArray
+    F_mid: NDArray
+    F1: NDArray
+    w0: NDArray
+    w_mid: NDArray
+    w1: NDArray
+    gait: int | None  # row of the gait finger
+
+
+def _plan_segments(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com: NDArray):
+    """Per step i: a _Segment for the move into step i (index 0: the settle), and the LP residuals."""
+    contacts = step_contacts(plan, hand)
+    g_palm = np.asarray(opts.gravity_palm, dtype=float)
+
+    def grip(i: int, holding: NDArray) -> tuple[NDArray, float]:
+        g_object = np.asarray(plan.steps[i].T_palm_object)[:3, :3].T @ g_palm
+        if opts.grip == "squeeze":
+            return np.zeros((len(holding), 3)), 0.0
+        return grip_forces(contacts[i], holding, g_object, mass, p_object_com, opts)
+
+    ends = [grip(i, contacts[i].touching) for i in range(len(plan.steps))]
+    residual = [r for _, r in ends]
+    segments = [_Segment(ends[0][0], ends[0][0], ends[0][0], *(contacts[0].touching,) * 3, None)]
+    for i in range(1, len(plan.steps)):
+        step, c0, c1 = plan.steps[i], contacts[i - 1], contacts[i]
+        g = list(plan.fingers).index(step.finger) if step.kind == "gait" and step.finger else None
+        w_mid = c0.touching & c1.touching
+        if g is not None:
+            w_mid = w_mid.copy()
+            w_mid[g] = False
+        F_mid, r_mid = grip(i - 1, w_mid) if g is not None else (ends[i][0], 0.0)
+        residual[i] = max(residual[i], r_mid)
+        segments.append(_Segment(ends[i - 1][0], F_mid, ends[i][0], c0.touching, w_mid, c1.touching, g))
+    return segments, contacts, residual
+
+
+def _phase_weights(seg: _Segment, s: float, opts: SimOptions):
+    """(grip forces (m, 3) object frame, squeeze weights (m,), motion phase u, lift phase) at phase s."""
+    if seg.gait is None:
+        return (1 - s) * seg.F0 + s * seg.F1, np.where(seg.w0 & seg.w1, 1.0, 0.0), s, None
+    a = opts.unload_fraction
+    if s < a:
+        b = s / a
+        F, w = (1 - b) * seg.F0 + b * seg.F_mid, (1 - b) * seg.w0 + b * seg.w_mid
+    elif s > 1 - a:
+        b = (s - 1 + a) / a
+        F, w = (1 - b) * seg.F_mid + b * seg.F1, (1 - b) * seg.w_mid + b * seg.w1
+    else:
+        F, w = seg.F_mid, seg.w_mid.astype(float)
+    u = (s - a) / max(1 - 2 * a, 1e-9)
+    return F, w, _smoothstep(u), (min(max(u, 0.0), 1.0) if 0.0 < u < 1.0 else None)
+
+
+def _dls(J: NDArray, dp: NDArray) -> NDArray:
+    return J.T @ np.linalg.solve(J @ J.T + _DLS_DAMPING**2 * np.eye(3), dp)
+
+
+def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com: NDArray):
+    """Joint targets along the plan (every `CONTROL_DT`), grip and gait handling included.
+
+    Args:
+        plan, hand: the plan and its Hand; opts: `SimOptions` (grip, grip_force, squeeze_depth,
+            lift_height, unload_fraction, kp, gravity_palm, friction, timing fields);
+        mass: object mass, kg; p_object_com: (3,) centre of mass, object frame, m.
+
+    Returns:
+        t (k,) s; q_cmd (k, n) rad; T_palm_object (k, 4, 4) planned object pose; q_grip0 (n,) the
+        targets that grip at step 0 (the settle's end); residual (s,) grip LP residual per step, N.
+    """
+    t, q_lin, T = plan_motion(plan, CONTROL_DT, opts.joint_velocity, opts.min_step_duration)
+    seg_idx, phase = _segments(step_end_times(plan, opts.joint_velocity, opts.min_step_duration), t)
+    segments, contacts, residual = _plan_segments(plan, hand, opts, mass, p_object_com)
+    Q = np.array([st.q for st in plan.steps], dtype=float)
+    q_cmd = np.empty_like(q_lin)
+    for k in range(len(t)):
+        i, s = int(seg_idx[k]), float(phase[k])
+        F, w, u, lift = _phase_weights(segments[i], s, opts)
+        q_cmd[k] = q_lin[k] if segments[i].gait is None else Q[i - 1] + u * (Q[i] - Q[i - 1])
+        q_cmd[k] += _grip_offset(plan, hand, opts, q_cmd[k], T[k], contacts[max(i - 1, 0)], contacts[i],
+                                 s, F, w, lift, segments[i].gait)
+    q0 = Q[0] + _grip_offset(plan, hand, opts, Q[0], np.asarray(plan.steps[0].T_palm_object), contacts[0],
+                             contacts[0], 1.0, segments[0].F0, segments[0].w0.astype(float), None, None)
+    return t, q_cmd, T, q0, np.asarray(residual)
+
+
+def _grip_offset(plan: Plan, hand, opts: SimOptions, q: NDArray, T: NDArray, c0: StepContacts,
+                 c1: StepContacts, s: float, F: NDArray, w: NDArray, lift: float | None,
+                 gait: int | None) -> NDArray:
+    """(n,) joint offset at one instant: grip of every finger plus the gait finger's lift."""
+    dq = np.zeros(len(q))
+    R = T[:3, :3]
+    for m, f in enumerate(plan.fingers):
+        n_obj = (1 - s) * c0.n_object[m] + s * c1.n_object[m]
+        n_palm = R @ (n_obj / max(np.linalg.norm(n_obj), 1e-12))
+        J = None
+        if opts.grip == "balanced" and np.any(F[m]):
+            J = hand.tip_jacobian(q, f)
+            dq += J.T @ (R @ F[m]) / opts.kp
+        elif opts.grip == "squeeze" and w[m] > 0:
+            J = hand.tip_jacobian(q, f)
+            dq += _dls(J, -opts.squeeze_depth * w[m] * n_palm)
+        if m == gait and lift is not None:
+            J = hand.tip_jacobian(q, f) if J is None else J
+            dq += _dls(J, opts.lift_height * np.sin(np.pi * lift) * n_palm)
+    return dq

@@ -1,0 +1,308 @@
+"""Execute a plan in physics (MuJoCo) and measure whether the hand really holds the object.
+
+    >>> report = simulate(plan, options=SimOptions(gravity_palm=(0, 0, -9.81)))
+    >>> print(report.summary())       # held / deviating / dropped, deviations in mm and degrees
+
+The model (`regrasp_casadi.mujoco_model`) is built from the project's own hand and object data. The run:
+
+1. **Settle** (`SimOptions.settle_time`): the hand at the plan's first joints, the object at its planned
+   pose; every fingertip that touches the object is commanded into the surface so that the position
+   servos press and the fingers grip (`SimOptions.grip`: "balanced" contact forces that cancel gravity's
+   wrench, or a uniform `squeeze_depth` of 2 mm along the contact normal; see `sim_control`). Grip and
+   gravity ramp in over the first 60 % of the settle.
+2. **Track** the plan's motion (`plan_motion`: joints linearly interpolated, each step lasting
+   max(`min_step_duration`, largest joint change / `joint_velocity`)), the grip kept on every holding
+   finger. The finger moved by a gait step hands its load over, is lifted (its tip `lift_height` above the
+   surface in mid-move) and lands again, while the others hold the planned object pose.
+3. **Hold** the last step for `hold_time`.
+
+Deviation = distance (mm) between the simulated and planned positions of the object's centre of mass,
+and the angle (degrees) between the simulated and planned orientations, both in the palm frame, at the
+end of every step. The object is **dropped** when a deviation exceeds `drop_distance` (2 cm) at any time,
+or fewer than `min_fingers` (2) fingers touch it at a step end; the plan is **followed** ("held") when it
+is not dropped and every step-end deviation is within `tol_position` / `tol_rotation` (5 mm / 5°).
+
+`plan_motion(plan, dt)` is the stand-in for the trajectory issue's `Plan.sample(dt)`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from regrasp_casadi.mujoco_model import SimModel, SimOptions, build_model
+from regrasp_casadi.sim_control import joint_commands, plan_motion, step_durations, step_end_times
+from regrasp_casadi.transforms import rotation_angle
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.grasp import Plan
+
+__all__ = ["SimOptions", "SimReport", "StepRecord", "simulate", "plan_motion", "step_durations"]
+
+# ------------------------------------------------------------------------------------------ report
+@dataclass(frozen=True)
+class StepRecord:
+    """The simulated state at the end of one plan step (or of the final hold)."""
+
+    step: int
+    """Plan step index (len(plan.steps) for the end of the final hold)."""
+    kind: str
+    """Plan step kind ("initial", "gait", "repose", "final") or "hold"."""
+    finger: str | None
+    """Finger moved by a gait step."""
+    time: float
+    """Simulated time, s (0 = start of the settle)."""
+    deviation_mm: float
+    """Distance between simulated and planned object centre of mass, palm frame, mm."""
+    deviation_deg: float
+    """Angle between simulated and planned object orientation, degrees."""
+    fingers_touching: tuple[str, ...]
+    """Fingers with at least one contact with the object."""
+    tip_normal_force: dict[str, float]
+    """finger -> normal force of its fingertip sphere's contacts with the object, N."""
+    other_normal_force: float
+    """Sum of the normal forces of the other hand geoms (links, palm) on the object, N."""
+    grip_residual: float
+    """Wrench the planned holding contacts cannot balance ("balanced" grip LP, worst over the step's
+    phases), N (torques counted at 5 cm); > 0 means the planned grasp cannot hold against gravity
+    with `grip_force` pressing (e.g. three fingers on one face)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict."""
+        d = dict(self.__dict__)
+        d["fingers_touching"] = list(self.fingers_touching)
+        return d
+
+
+@dataclass(frozen=True)
+class SimReport:
+    """Result of `simulate`: per-step deviations and contact forces, the verdict and timings."""
+
+    status: str
+    """"held" (followed within tolerance), "deviating" (not dropped, beyond tolerance) or "dropped"."""
+    detail: str
+    """Why it is not held ("" when held)."""
+    steps: tuple[StepRecord, ...]
+    """One record per plan step end, then one for the end of the final hold."""
+    max_deviation_mm: float
+    """Largest step-end position deviation, mm."""
+    max_deviation_deg: float
+    """Largest step-end rotation deviation, degrees."""
+    dropped: bool
+    """Deviation above `drop_distance` at any time, or fewer than `min_fingers` touching at a step end."""
+    drop_time: float | None
+    """Simulated time of the drop, s (None if not dropped)."""
+    sim_time: float
+    """Simulated duration, s."""
+    wall_time: float
+    """Wall-clock time of the whole call (model build included), s."""
+    object_mass: float
+    """Object mass used, kg."""
+    options: dict
+    """`SimOptions` used (`SimOptions.to_dict()`)."""
+    series: dict = field(default_factory=dict)
+    """Time series every `record_dt`: "t" s, "deviation_mm", "deviation_deg", "n_touching"."""
+
+    @property
+    def held(self) -> bool:
+        """True when the plan is followed within the tolerances (status "held")."""
+        return self.status == "held"
+
+    def summary(self) -> str:
+        """One line: verdict, max and final deviation, simulated and wall time."""
+        last = self.steps[-1] if self.steps else None
+        g = " ".join(f"{v:g}" for v in self.options.get("gravity_palm", ()))
+        text = (f"simulate: {self.status}; max deviation {self.max_deviation_mm:.2f} mm / "
+                f"{self.max_deviation_deg:.2f} deg")
+        if last is not None:
+            text += f", final {last.deviation_mm:.2f} mm / {last.deviation_deg:.2f} deg"
+        text += (f"; {len(self.steps) - 1} steps, {self.sim_time:.2f} s simulated in {self.wall_time:.2f} s"
+                 f" (gravity {g} m/s^2 in the palm frame)")
+        return text + (f" [{self.detail}]" if self.detail else "")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict of every field (``held`` included)."""
+        d = {k: v for k, v in self.__dict__.items() if k not in ("steps", "series")}
+        d["held"] = self.held
+        d["steps"] = [s.to_dict() for s in self.steps]
+        d["series"] = {k: np.asarray(v).tolist() for k, v in self.series.items()}
+        return d
+
+
+# ------------------------------------------------------------------------------------------ simulation
+class _Probe:
+    """Reads the object pose error and the hand-object contacts from MjData."""
+
+    def __init__(self, sim: SimModel, hand, opts: SimOptions) -> None:
+        self.sim, self.fingers = sim, tuple(hand.fingers)
+        R = opts.R_world_palm
+        self.T_palm_world = np.eye(4)
+        self.T_palm_world[:3, :3] = R.T
+        self._force = np.zeros(6)
+
+    def T_palm_object(self, data: mujoco.MjData) -> NDArray:
+        T = np.eye(4)
+        T[:3, :3] = data.xmat[self.sim.object_body].reshape(3, 3)
+        T[:3, 3] = data.xpos[self.sim.object_body]
+        return self.T_palm_world @ T
+
+    def deviation(self, data: mujoco.MjData, T_plan: NDArray) -> tuple[float, float]:
+        """(position error mm of the centre of mass, rotation error degrees) against ``T_plan``."""
+        T = self.T_palm_object(data)
+        com = self.sim.p_object_com
+        dp = (T[:3, :3] @ com + T[:3, 3]) - (T_plan[:3, :3] @ com + T_plan[:3, 3])
+        return float(np.linalg.norm(dp) * 1e3), float(np.degrees(rotation_angle(T_plan[:3, :3], T[:3, :3])))
+
+    def contacts(self, model: mujoco.MjModel, data: mujoco.MjData):
+        """(fingers touching, finger -> tip normal force N, other hand normal force N)."""
+        touching, tip_force, other = set(), dict.fromkeys(self.fingers, 0.0), 0.0
+        for i in range(data.ncon):
+            g1, g2 = (int(g) for g in data.contact.geom[i])
+            g = g2 if g1 in self.sim.object_geoms else g1 if g2 in self.sim.object_geoms else None
+            if g is None or g not in self.sim.geom_finger:
+                continue
+            mujoco.mj_contactForce(model, data, i, self._force)
+            finger = self.sim.geom_finger[g]
+            if finger is not None:
+                touching.add(finger)
+            if finger is not None and self.sim.tip_geom.get(finger) == g:
+                tip_force[finger] += float(self._force[0])
+            else:
+                other += float(self._force[0])
+        return tuple(f for f in self.fingers if f in touching), tip_force, other
+
+
+def _record(probe: _Probe, model, data, T_plan, step: int, kind: str, finger, residual: float) -> StepRecord:
+    dev_mm, dev_deg = probe.deviation(data, T_plan)
+    touching, tip_force, other = probe.contacts(model, data)
+    return StepRecord(step, kind, finger, float(data.time), dev_mm, dev_deg, touching, tip_force, other,
+                      float(residual))
+
+
+def _initial_state(sim: SimModel, data: mujoco.MjData, q0: NDArray, T_palm_object: NDArray,
+                   opts: SimOptions) -> None:
+    """Hand at q0 (at rest), object at its planned pose in the world frame."""
+    data.qpos[sim.qpos_hand] = q0
+    R_world_object = opts.R_world_palm @ T_palm_object[:3, :3]
+    p_world_object = opts.R_world_palm @ T_palm_object[:3, 3]
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, R_world_object.reshape(9))
+    data.qpos[sim.qpos_object:sim.qpos_object + 3] = p_world_object
+    data.qpos[sim.qpos_object + 3:sim.qpos_object + 7] = quat
+    data.qvel[:] = 0.0
+    data.ctrl[sim.actuator] = q0
+    mujoco.mj_forward(sim.model, data)
+
+
+def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
+    """Targets at every simulation step: (q_cmd (N, n), planned T (N, 4, 4), step-end sim indices,
+    settle length, grip residual per step)."""
+    t, q_cmd, T, q_grip0, residual = joint_commands(plan, hand, opts, sim.object_mass, sim.p_object_com)
+    dt = opts.timestep
+    n_settle = int(round(opts.settle_time / dt))
+    n_hold = int(round(opts.hold_time / dt))
+    t_sim = np.arange(int(round(t[-1] / dt)) + 1) * dt
+    Q = np.column_stack([np.interp(t_sim, t, q_cmd[:, j]) for j in range(q_cmd.shape[1])])
+    idx = np.clip(np.searchsorted(t, t_sim), 0, len(t) - 1)
+    ramp = np.clip(np.arange(n_settle) / max(0.6 * n_settle, 1), 0.0, 1.0)[:, None]
+    q0 = np.asarray(plan.steps[0].q, dtype=float)
+    Q = np.vstack([q0 + ramp * (q_grip0 - q0), Q, np.repeat(Q[-1:], n_hold, axis=0)])
+    T_ref = np.concatenate([np.repeat(T[:1], n_settle, 0), T[idx], np.repeat(T[-1:], n_hold, 0)])
+    t_end = step_end_times(plan, opts.joint_velocity, opts.min_step_duration)
+    ends = n_settle + np.rint(t_end / dt).astype(int)
+    return Q, T_ref, ends, n_settle, residual
+
+
+def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
+    """Step the simulation along the timeline; returns (step records, series, drop time or None)."""
+    model, data = sim.model, mujoco.MjData(sim.model)
+    Q, T_ref, ends, n_settle, residual = _timeline(sim, plan, hand, opts)
+    gravity = np.array(model.opt.gravity)
+    _initial_state(sim, data, plan.steps[0].q, plan.steps[0].T_palm_object, opts)
+    probe = _Probe(sim, hand, opts)
+    every = max(int(round(opts.record_dt / opts.timestep)), 1)
+    step_at = {int(k): i for i, k in enumerate(ends)}
+    series: dict[str, list] = {"t": [], "deviation_mm": [], "deviation_deg": [], "n_touching": []}
+    records, drop_time = [], None
+    for k in range(len(Q)):
+        if k <= n_settle:
+            model.opt.gravity[:] = gravity * min(1.0, k / max(0.6 * n_settle, 1))
+        data.ctrl[sim.actuator] = Q[k]
+        mujoco.mj_step(model, data)
+        if k + 1 in step_at:
+            i = step_at[k + 1]
+            records.append(_record(probe, model, data, plan.steps[i].T_palm_object, i,
+                                   plan.steps[i].kind, plan.steps[i].finger, residual[i]))
+        if (k + 1) % every == 0 or k + 1 == len(Q):
+            dev_mm, dev_deg = probe.deviation(data, T_ref[k])
+            series["t"].append(float(data.time))
+            series["deviation_mm"].append(dev_mm)
+            series["deviation_deg"].append(dev_deg)
+            series["n_touching"].append(len(probe.contacts(model, data)[0]))
+            if drop_time is None and dev_mm > opts.drop_distance * 1e3:
+                drop_time = float(data.time)
+    model.opt.gravity[:] = gravity
+    records.append(_record(probe, model, data, plan.steps[-1].T_palm_object, len(plan.steps), "hold", None,
+                           residual[-1]))
+    return records, series, drop_time
+
+
+def _verdict(records: list[StepRecord], drop_time: float | None, opts: SimOptions):
+    """(status, detail, dropped, drop time) from the step records and the first over-deviation time."""
+    few = next((r for r in records if len(r.fingers_touching) < opts.min_fingers), None)
+    if few is not None and (drop_time is None or few.time < drop_time):
+        return ("dropped", f"{len(few.fingers_touching)} finger(s) touching the object at the end of step "
+                f"{few.step} (t = {few.time:.2f} s)", True, few.time)
+    if drop_time is not None:
+        return ("dropped", f"object more than {opts.drop_distance * 1e3:.0f} mm from the plan at "
+                f"t = {drop_time:.2f} s", True, drop_time)
+    worst = max(records, key=lambda r: r.deviation_mm)
+    worst_r = max(records, key=lambda r: r.deviation_deg)
+    if worst.deviation_mm > opts.tol_position * 1e3 or worst_r.deviation_deg > opts.tol_rotation:
+        return ("deviating", f"step {worst.step}: {worst.deviation_mm:.2f} mm, step {worst_r.step}: "
+                f"{worst_r.deviation_deg:.2f} deg (tolerance {opts.tol_position * 1e3:g} mm / "
+                f"{opts.tol_rotation:g} deg)", False, None)
+    return "held", "", False, None
+
+
+def _plan_models(plan: Plan):
+    """(hand, object) rebuilt from the plan's specs."""
+    try:
+        from regrasp_casadi.problem import plan_models  # after the restructure (issue 9)
+    except ImportError:
+        return plan.hand(), plan.object()
+    return plan_models(plan)
+
+
+def simulate(plan: Plan, hand=None, obj=None, options: SimOptions | None = None) -> SimReport:
+    """Execute ``plan`` in MuJoCo and report how closely the object follows it.
+
+    Args:
+        plan: a Plan (its steps' q, T_palm_object, contacts_object, kind, finger are used).
+        hand, obj: the plan's Hand and ObjectModel (default: rebuilt from the plan's specs).
+        options: physics and execution constants (default `SimOptions()`: gravity off).
+
+    Returns:
+        SimReport: per-step deviation (mm, degrees) and contact normal forces, verdict, timings.
+    """
+    t0 = time.perf_counter()
+    opts = options or SimOptions()
+    if hand is None or obj is None:
+        hand_p, obj_p = _plan_models(plan)
+        hand, obj = hand or hand_p, obj or obj_p
+    sim = build_model(hand, obj, opts)
+    records, series, drop_time = _run(sim, plan, hand, opts)
+    status, detail, dropped, drop_t = _verdict(records, drop_time, opts)
+    return SimReport(
+        status=status, detail=detail, steps=tuple(records),
+        max_deviation_mm=max(r.deviation_mm for r in records),
+        max_deviation_deg=max(r.deviation_deg for r in records),
+        dropped=dropped, drop_time=drop_t, sim_time=float(len(series["t"]) and series["t"][-1]),
+        wall_time=time.perf_counter() - t0, object_mass=sim.object_mass, options=opts.to_dict(),
+        series={k: np.asarray(v) for k, v in series.items()},
+    )
