@@ -3,6 +3,7 @@
     regrasp plan PROBLEM.yaml --method svd --out plan.json [--html replay.html] [--view] [--max-iters N]
     regrasp verify plan.json [--all] [--zeta MM] [--eta MM] [--surface-tol MM] [--max-slip MM] ...
     regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]]
+    regrasp simulate plan.json [--gravity X Y Z] [--json report.json]
     regrasp grasps MESH_OR_PROBLEM [--hand MODEL] [--n N] [--seed S] [--out problems/x.yaml]
     regrasp bench [ARGS ...]          (runs benchmarks/paper_objects.py)
     regrasp demo [--out-dir DIR] [--method svd]
@@ -228,6 +229,35 @@ def cmd_view(args: argparse.Namespace) -> int:
     return _view_live(plan, host=args.host)
 
 
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """Execute a plan in MuJoCo; exit 0 when the object is held within tolerance, 1 when dropped or
+    deviating, 2 for bad input."""
+    import json
+    import math
+
+    from regrasp_casadi.simulate import SimOptions, simulate
+
+    gravity = tuple(args.gravity) if args.gravity else (0.0, 0.0, 0.0)
+    if not all(math.isfinite(g) for g in gravity):
+        raise _UserError(f"--gravity: expected three finite numbers (m/s^2), got {args.gravity}")
+    plan = _load_plan(args.plan)
+    report = simulate(plan, options=SimOptions(gravity_palm=gravity))
+    print(report.summary())
+    tol_mm, min_fingers = report.options["tol_position"] * 1e3, report.options["min_fingers"]
+    for rec in report.steps:
+        if rec.deviation_mm > tol_mm or len(rec.fingers_touching) < min_fingers:
+            print(f"  first departure: step {rec.step} ({rec.kind}{' ' + rec.finger if rec.finger else ''}) "
+                  f"at t = {rec.time:.2f} s: {rec.deviation_mm:.2f} mm / {rec.deviation_deg:.2f} deg, "
+                  f"touching: {', '.join(rec.fingers_touching) or 'none'}")
+            break
+    if args.json:
+        out = Path(args.json)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(report.to_dict(), indent=1))
+        print(f"wrote {out}")
+    return EXIT_OK if report.held else EXIT_FAILED
+
+
 def cmd_grasps(args: argparse.Namespace) -> int:
     try:
         import regrasp_casadi.grasp_gen as grasp_gen
@@ -414,6 +444,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="replay time of the screenshot, s (default: the end)")
     _add_host(sp)
     sp.set_defaults(func=cmd_view)
+
+    sp = add("simulate", "execute a plan in physics (MuJoCo) and report whether the object is held")
+    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
+    sp.add_argument("--gravity", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                    help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81)")
+    sp.add_argument("--json", metavar="REPORT.json", help="write the simulation report as JSON")
+    sp.set_defaults(func=cmd_simulate)
 
     sp = add("grasps", "generate precision grasps on a mesh (or a problem's object)")
     sp.add_argument("source", metavar="MESH_OR_PROBLEM", help="mesh file (.obj, .stl, ...) or problem .yaml")

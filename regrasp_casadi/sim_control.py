@@ -211,7 +211,7 @@ def grip_forces(contacts: StepContacts, holding: NDArray, g_object: NDArray, mas
     x = P @ res.x
     for a, j in enumerate(idx):
         forces[j] = basis[a] @ x[3 * a:3 * a + 3]
-    slack = x[3 * k:3 * k + 6]
+    slack = x[3 * k:3 * k + 6] - x[3 * k + 6:]
     return forces, float(np.linalg.norm(slack[:3]) + np.linalg.norm(slack[3:]))
 
 

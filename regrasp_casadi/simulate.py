@@ -106,7 +106,9 @@ class SimReport:
     options: dict
     """`SimOptions` used (`SimOptions.to_dict()`)."""
     series: dict = field(default_factory=dict)
-    """Time series every `record_dt`: "t" s, "deviation_mm", "deviation_deg", "n_touching"."""
+    """Time series every `record_dt`: "t" (k,) s, "deviation_mm" (k,), "deviation_deg" (k,),
+    "n_touching" (k,) fingers touching, "tip_normal_force" (k, m) N in `hand.fingers` order,
+    "other_normal_force" (k,) N."""
 
     @property
     def held(self) -> bool:
@@ -116,13 +118,15 @@ class SimReport:
     def summary(self) -> str:
         """One line: verdict, max and final deviation, simulated and wall time."""
         last = self.steps[-1] if self.steps else None
-        g = " ".join(f"{v:g}" for v in self.options.get("gravity_palm", ()))
+        g_palm = tuple(self.options.get("gravity_palm", ()))
+        g = "gravity off" if not any(g_palm) else (
+            "gravity " + " ".join(f"{v:g}" for v in g_palm) + " m/s^2 in the palm frame")
         text = (f"simulate: {self.status}; max deviation {self.max_deviation_mm:.2f} mm / "
                 f"{self.max_deviation_deg:.2f} deg")
         if last is not None:
             text += f", final {last.deviation_mm:.2f} mm / {last.deviation_deg:.2f} deg"
         text += (f"; {len(self.steps) - 1} steps, {self.sim_time:.2f} s simulated in {self.wall_time:.2f} s"
-                 f" (gravity {g} m/s^2 in the palm frame)")
+                 f" ({g})")
         return text + (f" [{self.detail}]" if self.detail else "")
 
     def to_dict(self) -> dict[str, Any]:
@@ -212,6 +216,8 @@ def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     ramp = np.clip(np.arange(n_settle) / max(0.6 * n_settle, 1), 0.0, 1.0)[:, None]
     q0 = np.asarray(plan.steps[0].q, dtype=float)
     Q = np.vstack([q0 + ramp * (q_grip0 - q0), Q, np.repeat(Q[-1:], n_hold, axis=0)])
+    # velocity feed-forward: the servo force kp (ctrl − q) − kv q̇ − damping q̇ then has no lag on a ramp
+    Q = Q + (opts.kv + opts.joint_damping) / opts.kp * np.gradient(Q, dt, axis=0)
     T_ref = np.concatenate([np.repeat(T[:1], n_settle, 0), T[idx], np.repeat(T[-1:], n_hold, 0)])
     t_end = step_end_times(plan, opts.joint_velocity, opts.min_step_duration)
     ends = n_settle + np.rint(t_end / dt).astype(int)
@@ -227,7 +233,8 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     probe = _Probe(sim, hand, opts)
     every = max(int(round(opts.record_dt / opts.timestep)), 1)
     step_at = {int(k): i for i, k in enumerate(ends)}
-    series: dict[str, list] = {"t": [], "deviation_mm": [], "deviation_deg": [], "n_touching": []}
+    series: dict[str, list] = {k: [] for k in ("t", "deviation_mm", "deviation_deg", "n_touching",
+                                               "tip_normal_force", "other_normal_force")}
     records, drop_time = [], None
     for k in range(len(Q)):
         if k <= n_settle:
@@ -243,7 +250,10 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
             series["t"].append(float(data.time))
             series["deviation_mm"].append(dev_mm)
             series["deviation_deg"].append(dev_deg)
-            series["n_touching"].append(len(probe.contacts(model, data)[0]))
+            touching, tip_force, other = probe.contacts(model, data)
+            series["n_touching"].append(len(touching))
+            series["tip_normal_force"].append([tip_force[f] for f in probe.fingers])
+            series["other_normal_force"].append(other)
             if drop_time is None and dev_mm > opts.drop_distance * 1e3:
                 drop_time = float(data.time)
     model.opt.gravity[:] = gravity

@@ -1,0 +1,283 @@
+"""`regrasp simulate`: the MuJoCo model against the project's kinematics, the grip forces against statics,
+and executed grasps and plans against physical expectations (held, dropped, followed)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from regrasp_casadi.mujoco_model import OBJECT_BODY, SimOptions, build_model
+from regrasp_casadi.sim_control import grip_forces, plan_motion, step_contacts, step_end_times
+from regrasp_casadi.simulate import simulate
+from regrasp_casadi.transforms import log_SO3
+
+REPO = Path(__file__).resolve().parents[1]
+BOX_SHIFT = REPO / "problems" / "box_shift.yaml"
+GRAVITY_DOWN = (0.0, 0.0, -9.81)  # along −z of the palm frame (the fingers point up)
+
+
+# ------------------------------------------------------------------------------------------ helpers
+@pytest.fixture(scope="module")
+def box_problem():
+    from regrasp_casadi import RegraspProblem
+
+    return RegraspProblem.load(BOX_SHIFT)
+
+
+def _plan(hand, obj, steps) -> object:
+    """A Plan of (kind, finger, q, T_palm_object) steps; contacts = closest points of the tip centres."""
+    from regrasp_casadi import Plan, PlanStep
+
+    out = []
+    for kind, finger, q, T in steps:
+        p_object_tips = (hand.tip_positions(q) - T[:3, 3]) @ T[:3, :3]
+        contacts, _ = obj.closest_points(p_object_tips)
+        out.append(PlanStep(kind=kind, finger=finger, q=q, T_palm_object=T, contacts_object=contacts,
+                            contact_error=np.zeros(len(hand.fingers)), solver_status="", solve_time=0.0))
+    return Plan(steps=tuple(out), goal_contacts_object=out[-1].contacts_object,
+                goal_T_palm_object=out[-1].T_palm_object, fingers=tuple(hand.fingers),
+                hand_spec=hand.spec(), object_spec=obj.spec, method="svd", status="converged",
+                status_detail="", iterations=0, iteration_errors=np.zeros(1), timing={}, options={})
+
+
+def _lifted(hand, obj, q, T, finger: str, clearance: float = 0.02):
+    """q with ``finger``'s tip moved along the outward surface normal until ``clearance`` (m) clear."""
+    q = np.array(q, dtype=float)
+    k = list(hand.fingers).index(finger)
+    for _ in range(40):
+        p_object_tip = (hand.tip_positions(q)[k] - T[:3, 3]) @ T[:3, :3]
+        closest, d = obj.closest_points(p_object_tip[None])
+        if d[0] - hand.tip_radius > clearance:
+            return q
+        n_palm = T[:3, :3] @ ((p_object_tip - closest[0]) / np.linalg.norm(p_object_tip - closest[0]))
+        J = hand.tip_jacobian(q, finger)
+        q = hand.clip(q + J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(3), 0.004 * n_palm))
+    raise AssertionError(f"could not lift {finger} {clearance} m clear")
+
+
+# ------------------------------------------------------------------------------------------ the model
+def test_model_kinematics_equal_the_project_fk(hand, box_problem):
+    """MuJoCo's own forward kinematics (mj_kinematics) of the MjSpec model vs the project's CasADi FK:
+    every body pose, every joint axis (from FK finite differences), every collision sphere, the limits."""
+    palm_wxyz = (np.cos(0.4), np.sin(0.4) * 0.6, 0.0, np.sin(0.4) * 0.8)
+    sim = build_model(hand, box_problem.obj, SimOptions(palm_wxyz=palm_wxyz))
+    model, data = sim.model, mujoco.MjData(sim.model)
+    R_world_palm = SimOptions(palm_wxyz=palm_wxyz).R_world_palm
+    labels = hand.sphere_labels(None, include_tip=True)
+    radii = hand.sphere_radii(None, include_tip=True)
+    np.testing.assert_array_equal(model.jnt_range[[model.joint(n).id for n in hand.joint_names]],
+                                  np.column_stack([hand.q_lower, hand.q_upper]))
+    rng = np.random.default_rng(0)
+    for q in rng.uniform(hand.q_lower, hand.q_upper, size=(3, hand.n_joints)):
+        data.qpos[sim.qpos_hand] = q
+        mujoco.mj_kinematics(model, data)
+        fk = hand.fk(q)
+        for link, body in sim.body_link.items():
+            np.testing.assert_allclose(data.xpos[body], R_world_palm @ fk[link][:3, 3], atol=1e-6)
+            np.testing.assert_allclose(data.xmat[body].reshape(3, 3), R_world_palm @ fk[link][:3, :3],
+                                       atol=1e-6)
+        for i, name in enumerate(hand.joint_names):
+            h = 1e-5
+            dq = np.zeros(hand.n_joints)
+            dq[i] = h
+            child = model.body(model.jnt_bodyid[model.joint(name).id]).name
+            R_plus, R_minus = hand.fk(q + dq)[child][:3, :3], hand.fk(q - dq)[child][:3, :3]
+            axis_palm = log_SO3(R_plus @ R_minus.T) / (2 * h)
+            np.testing.assert_allclose(data.xaxis[model.joint(name).id], R_world_palm @ axis_palm, atol=1e-6)
+        p_palm_spheres = hand.sphere_centers(q, None, include_tip=True)
+        for label, p, r in zip(labels, p_palm_spheres, radii, strict=True):
+            g = model.geom(("tip:" if label.endswith("#tip") else "sphere:") + label).id
+            np.testing.assert_allclose(data.geom_xpos[g], R_world_palm @ p, atol=1e-6)
+            assert model.geom_size[g, 0] == pytest.approx(r, abs=1e-12)
+
+
+def test_object_body_mass_inertia_and_geometry(box_problem):
+    """Box 0.05 × 0.07 × 0.12 m at 500 kg/m³: mass and principal inertia against the closed-form box
+    formulas; the compiled convex mesh sits where the piece's vertices are (object frame)."""
+    obj = box_problem.obj
+    sim = build_model(box_problem.hand, obj, SimOptions())
+    model, data = sim.model, mujoco.MjData(sim.model)
+    a, b, c = 0.05, 0.07, 0.12
+    m = a * b * c * 500.0
+    body = model.body(OBJECT_BODY).id
+    assert model.body_mass[body] == pytest.approx(m, rel=1e-9)
+    expected = m / 12.0 * np.array([b**2 + c**2, a**2 + c**2, a**2 + b**2])
+    np.testing.assert_allclose(np.sort(model.body_inertia[body]), np.sort(expected), rtol=1e-6)
+    heavier = build_model(box_problem.hand, obj, SimOptions(object_mass=0.5))
+    assert heavier.model.body_mass[body] == pytest.approx(0.5)
+    mujoco.mj_forward(model, data)  # object at the world origin: body frame = object frame
+    geoms = sorted(sim.object_geoms)
+    assert len(geoms) == len(obj.pieces)
+    for g, piece in zip(geoms, obj.pieces, strict=True):
+        mesh = model.geom_dataid[g]
+        v = model.mesh_vert[model.mesh_vertadr[mesh]:model.mesh_vertadr[mesh] + model.mesh_vertnum[mesh]]
+        v_object = v @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
+        dist = np.linalg.norm(v_object[:, None] - np.asarray(piece.vertices)[None], axis=2)
+        assert dist.min(axis=1).max() < 1e-6 and dist.min(axis=0).max() < 1e-6
+
+
+def test_sim_options_reject_bad_values():
+    with pytest.raises(ValueError, match="integrator"):
+        SimOptions(integrator="verlet")
+    with pytest.raises(ValueError, match="grip"):
+        SimOptions(grip="magnets")
+    with pytest.raises(ValueError, match="kp"):
+        SimOptions(kp=0.0)
+
+
+# ------------------------------------------------------------------------------------------ the motion
+def test_plan_motion_passes_through_the_steps_at_the_joint_speed(hand, box_problem):
+    g0 = box_problem.grasp0
+    q1 = _lifted(hand, box_problem.obj, g0.q, g0.T_palm_object, "index", 0.01)
+    plan = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
+                                         ("gait", "index", q1, g0.T_palm_object),
+                                         ("gait", "index", g0.q, g0.T_palm_object)])
+    dt = 1e-3
+    t, q, T = plan_motion(plan, dt, joint_velocity=1.0, min_step_duration=0.2)
+    t_end = step_end_times(plan, 1.0, 0.2)
+    assert t[-1] == pytest.approx(t_end[-1]) and t_end[1] - t_end[0] >= 0.2 - 1e-12
+    for i, te in enumerate(t_end):
+        k = int(np.argmin(np.abs(t - te)))
+        np.testing.assert_allclose(q[k], plan.steps[i].q, atol=1.0 * dt + 1e-12)
+    assert np.abs(np.diff(q, axis=0)).max() / dt <= 1.0 + 1e-9
+    np.testing.assert_allclose(T, np.broadcast_to(g0.T_palm_object, T.shape), atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------ grip forces
+def test_grip_forces_balance_gravity_within_the_cones(hand, box_problem):
+    """Statics of the LP's forces: Σf = −m g and Σ (p − c) × f = 0, normal ≥ grip_force, |f_t| ≤ μ f_n;
+    the three fingers on one face (thumb lifted) cannot balance anything (residual > 0)."""
+    g0 = box_problem.grasp0
+    plan = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
+    contacts = step_contacts(plan, hand)[0]
+    opts = SimOptions()
+    mass, com = 0.21, np.zeros(3)
+    g_object = g0.T_palm_object[:3, :3].T @ np.array(GRAVITY_DOWN)
+    F, residual = grip_forces(contacts, contacts.touching, g_object, mass, com, opts)
+    assert contacts.touching.all() and residual < 1e-6
+    np.testing.assert_allclose(F.sum(axis=0), -mass * g_object, atol=1e-6)
+    np.testing.assert_allclose(np.cross(contacts.p_object - com, F).sum(axis=0), 0.0, atol=1e-6)
+    f_n = -np.einsum("ij,ij->i", F, contacts.n_object)
+    f_t = np.linalg.norm(F + f_n[:, None] * contacts.n_object, axis=1)
+    assert (f_n >= opts.grip_force - 1e-9).all()
+    assert (f_t <= opts.grip_friction_fraction * opts.friction * f_n + 1e-9).all()
+    one_face = np.array([f != "thumb" for f in plan.fingers])
+    _, residual_one_face = grip_forces(contacts, one_face, np.zeros(3), mass, com, opts)
+    assert residual_one_face > opts.grip_force  # three ≥ 1 N pushes on one face, nothing opposes them
+
+
+# ------------------------------------------------------------------------------------------ execution
+@pytest.mark.parametrize("gravity, hold", [((0.0, 0.0, 0.0), 1.0), (GRAVITY_DOWN, 2.0)])
+def test_initial_grasp_is_held(hand, box_problem, gravity, hold):
+    """box_shift's grasp0 held for `hold` s: measured 0.11 mm / 0.19° (off, 1 s) and 0.23 mm / 0.27°
+    (gravity along −z of the palm, 2 s); the bound is 2 mm / 2°."""
+    g0 = box_problem.grasp0
+    plan = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
+    report = simulate(plan, hand, box_problem.obj, SimOptions(gravity_palm=gravity, hold_time=hold))
+    assert report.held, report.summary()
+    assert report.max_deviation_mm < 2.0 and report.max_deviation_deg < 2.0, report.summary()
+    assert report.sim_time == pytest.approx(0.5 + hold, abs=2e-3)
+    final = report.steps[-1]
+    assert set(final.fingers_touching) == set(hand.fingers)
+    if any(gravity):  # the fingers carry the weight: friction ≥ m g needs Σ normal ≥ m g / μ
+        assert sum(final.tip_normal_force.values()) >= report.object_mass * 9.81 / 0.5
+
+
+@pytest.mark.parametrize("finger, dropped", [("thumb", True), ("index", False)])
+def test_lifting_the_thumb_drops_the_box(hand, box_problem, finger, dropped):
+    """grasp0 has index, middle and ring on one face and the thumb opposite: lifting the thumb 2 cm
+    under gravity drops the box (deviation > 2 cm within 1 s of the settle); lifting the index instead
+    leaves a force-closure grasp that holds (measured 0.27 mm / 0.50°)."""
+    g0 = box_problem.grasp0
+    q1 = _lifted(hand, box_problem.obj, g0.q, g0.T_palm_object, finger)
+    plan = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
+                                         ("gait", finger, q1, g0.T_palm_object)])
+    opts = SimOptions(gravity_palm=GRAVITY_DOWN, hold_time=1.0)
+    report = simulate(plan, hand, box_problem.obj, opts)
+    assert report.dropped is dropped, report.summary()
+    if dropped:
+        assert report.drop_time <= opts.settle_time + 1.0
+        assert max(report.series["deviation_mm"]) > 20.0
+        assert report.steps[1].grip_residual > 0.0
+    else:
+        assert report.held and report.max_deviation_mm < 2.0, report.summary()
+
+
+@pytest.fixture(scope="module")
+def box_shift_plan(box_problem):
+    from regrasp_casadi import plan_regrasp
+
+    plan = plan_regrasp(box_problem.grasp0, box_problem.grasp_goal, method="svd")
+    assert plan.status == "converged"
+    return plan
+
+
+@pytest.mark.xfail(strict=False, reason=(
+    "measured (MuJoCo 4.0, default SimOptions, gravity off): box_shift's svd plan ends 10.1 mm / 6.8 deg "
+    "from the plan (max 10.1 mm / 10.1 deg, status 'deviating'): each of its three thumb gaits (steps 1, "
+    "6, 11) leaves index, middle and ring on one face (force-closure margin 0, grip residual 4.1 N), so "
+    "the holding fingers push the box 1.6-4.4 mm away; the open-loop execution never corrects it"))
+def test_shipped_plan_is_followed_with_gravity_off(box_problem, box_shift_plan):
+    report = simulate(box_shift_plan, box_problem.hand, box_problem.obj, SimOptions())
+    assert report.held and report.max_deviation_mm <= 5.0, report.summary()
+
+
+def test_force_closure_part_of_a_shipped_plan_is_followed(box_problem, box_shift_plan):
+    """The longest run of box_shift's plan whose gaits all keep force closure (ε > 0, `stability`),
+    executed from its first step with gravity off: every step-end centre-of-mass deviation within 3 mm.
+    Measured (steps 11-24): 1.5 mm and 6.6 deg; the rotation is not asserted (three point contacts of small
+    margin ε ≈ 0.01-0.06 let the box turn a few degrees per gait)."""
+    from regrasp_casadi.stability import holding_quality, torque_reference
+
+    plan, hand, obj = box_shift_plan, box_problem.hand, box_problem.obj
+    com, length = torque_reference(obj.mesh)
+
+    def closed(i: int) -> bool:
+        step, before = plan.steps[i], plan.steps[i - 1]
+        if step.kind != "gait":
+            return True
+        T = before.T_palm_object
+        tips = (hand.tip_positions(before.q) - T[:3, 3]) @ T[:3, :3]
+        return holding_quality(before.contacts_object, tips, list(plan.fingers).index(step.finger),
+                               com, length) > 1e-3
+
+    runs, start = [], 0
+    for i in range(1, len(plan.steps) + 1):
+        if i == len(plan.steps) or not closed(i):
+            runs.append((start, i))
+            start = i
+    a, b = max(runs, key=lambda r: r[1] - r[0])
+    assert b - a >= 6, runs
+    steps = list(plan.steps[a:b])
+    steps[0] = dataclasses.replace(steps[0], kind="initial", finger=None)
+    report = simulate(dataclasses.replace(plan, steps=tuple(steps)), hand, obj, SimOptions())
+    assert not report.dropped and report.max_deviation_mm <= 3.0, report.summary()
+
+
+# ------------------------------------------------------------------------------------------ CLI
+def test_cli_simulate_exit_codes_and_json(hand, box_problem, tmp_path, capsys):
+    from regrasp_casadi import cli
+
+    g0 = box_problem.grasp0
+    held = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
+    q1 = _lifted(hand, box_problem.obj, g0.q, g0.T_palm_object, "thumb")
+    dropped = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
+                                            ("gait", "thumb", q1, g0.T_palm_object)])
+    held.save(tmp_path / "held.json")
+    dropped.save(tmp_path / "dropped.json")
+    out = tmp_path / "report.json"
+    assert cli.main(["simulate", str(tmp_path / "held.json"), "--gravity", "0", "0", "-9.81",
+                     "--json", str(out)]) == cli.EXIT_OK
+    assert "simulate: held" in capsys.readouterr().out
+    report = json.loads(out.read_text())
+    assert report["held"] and report["options"]["gravity_palm"] == [0.0, 0.0, -9.81]
+    assert len(report["steps"]) == 2 and set(report["steps"][-1]["tip_normal_force"]) == set(hand.fingers)
+    assert cli.main(["simulate", str(tmp_path / "dropped.json"), "--gravity", "0", "0", "-9.81"]) == 1
+    assert "simulate: dropped" in capsys.readouterr().out
+    assert cli.main(["simulate", str(tmp_path / "missing.json")]) == cli.EXIT_BAD_INPUT
+    assert cli.main(["simulate", str(tmp_path / "held.json"), "--gravity", "0", "nan", "0"]) == 2
