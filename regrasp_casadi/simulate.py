@@ -108,7 +108,7 @@ class SimReport:
     series: dict = field(default_factory=dict)
     """Time series every `record_dt`: "t" (k,) s, "deviation_mm" (k,), "deviation_deg" (k,),
     "n_touching" (k,) fingers touching, "tip_normal_force" (k, m) N in `hand.fingers` order,
-    "other_normal_force" (k,) N."""
+    "other_normal_force" (k,) N, and the simulated motion: "q" (k, n) rad, "T_palm_object" (k, 4, 4)."""
 
     @property
     def held(self) -> bool:
@@ -129,12 +129,14 @@ class SimReport:
                  f" ({g})")
         return text + (f" [{self.detail}]" if self.detail else "")
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict of every field (``held`` included)."""
+    def to_dict(self, motion: bool = False) -> dict[str, Any]:
+        """JSON-ready dict of every field (``held`` included); the series' simulated motion ("q",
+        "T_palm_object") only with ``motion=True``."""
         d = {k: v for k, v in self.__dict__.items() if k not in ("steps", "series")}
         d["held"] = self.held
         d["steps"] = [s.to_dict() for s in self.steps]
-        d["series"] = {k: np.asarray(v).tolist() for k, v in self.series.items()}
+        d["series"] = {k: np.asarray(v).tolist() for k, v in self.series.items()
+                       if motion or k not in ("q", "T_palm_object")}
         return d
 
 
@@ -234,7 +236,8 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     every = max(int(round(opts.record_dt / opts.timestep)), 1)
     step_at = {int(k): i for i, k in enumerate(ends)}
     series: dict[str, list] = {k: [] for k in ("t", "deviation_mm", "deviation_deg", "n_touching",
-                                               "tip_normal_force", "other_normal_force")}
+                                               "tip_normal_force", "other_normal_force", "q",
+                                               "T_palm_object")}
     records, drop_time = [], None
     for k in range(len(Q)):
         if k <= n_settle:
@@ -254,6 +257,8 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
             series["n_touching"].append(len(touching))
             series["tip_normal_force"].append([tip_force[f] for f in probe.fingers])
             series["other_normal_force"].append(other)
+            series["q"].append(data.qpos[sim.qpos_hand].copy())
+            series["T_palm_object"].append(probe.T_palm_object(data))
             if drop_time is None and dev_mm > opts.drop_distance * 1e3:
                 drop_time = float(data.time)
     model.opt.gravity[:] = gravity
@@ -304,7 +309,8 @@ def simulate(plan: Plan, hand=None, obj=None, options: SimOptions | None = None)
     opts = options or SimOptions()
     if hand is None or obj is None:
         hand_p, obj_p = _plan_models(plan)
-        hand, obj = hand or hand_p, obj or obj_p
+        hand = hand if hand is not None else hand_p
+        obj = obj if obj is not None else obj_p
     sim = build_model(hand, obj, opts)
     records, series, drop_time = _run(sim, plan, hand, opts)
     status, detail, dropped, drop_t = _verdict(records, drop_time, opts)
