@@ -6,8 +6,56 @@
 
 Gravity conditions (palm frame, m/s²; the Allegro palm faces +x, its fingers point along +z):
 off (0, 0, 0), fingers up (0, 0, −9.81), palm up (−9.81, 0, 0), palm down (+9.81, 0, 0).
-For each plan it also prints the number of gaits whose holding fingers lack force closure
-(`stability.holding_quality` ≤ 0), which is what decides most drops. Measures; asserts nothing.
+For each plan it also prints the gaits whose holding fingers lack force closure ("open":
+`stability.holding_quality` ≤ 1e-3 with μ = 0.5) and, for a drop, the step being executed and whether
+it is an open gait. Writes benchmarks/results/simulate.json (records + machine). Measures; asserts nothing.
+
+Run of commit a777434 + this script (2026-12-01, AMD EPYC, 2 shared cores, 1-minute load 7.3, Python
+3.11.7, MuJoCo 4.0.0, CasADi 3.8.2; default SimOptions: balanced grip ≥ 1 N, μ = 0.5, condim 3, kp 3
+N·m/rad, 0.7 N·m torque limit; plans with the planner's default options):
+
+| problem | method | open gaits | condition | status | max mm | max deg | final mm | final deg | drop step | wall s |
+|---|---|---|---|---|---|---|---|---|---|---|
+| bottle_regrasp | svd | 12 / 22 | off | dropped | at 1.25 s | | | | 3 gait ring, open | 2.3 |
+| bottle_regrasp | svd | 12 / 22 | fingers_up | dropped | at 0.79 s | | | | 2 gait middle, closed | 1.8 |
+| bottle_regrasp | svd | 12 / 22 | palm_up | dropped | at 0.59 s | | | | 1 gait index, open | 1.7 |
+| bottle_regrasp | svd | 12 / 22 | palm_down | dropped | at 0.57 s | | | | 1 gait index, open | 1.4 |
+| bottle_regrasp | sd | 12 / 22 | off | dropped | at 1.25 s | | | | 3 gait ring, open | 0.9 |
+| bottle_regrasp | sd | 12 / 22 | fingers_up | dropped | at 0.79 s | | | | 2 gait middle, closed | 1.1 |
+| bottle_regrasp | sd | 12 / 22 | palm_up | dropped | at 0.59 s | | | | 1 gait index, open | 1.3 |
+| bottle_regrasp | sd | 12 / 22 | palm_down | dropped | at 0.57 s | | | | 1 gait index, open | 1.1 |
+| box_rotate | svd | 7 / 26 | off | deviating | 17.2 | 37.5 | 14.9 | 37.2 |  | 1.8 |
+| box_rotate | svd | 7 / 26 | fingers_up | dropped | at 3.41 s | | | | 9 gait thumb, open | 1.7 |
+| box_rotate | svd | 7 / 26 | palm_up | dropped | at 1.69 s | | | | 4 gait thumb, open | 1.9 |
+| box_rotate | svd | 7 / 26 | palm_down | dropped | at 1.58 s | | | | 4 gait thumb, open | 1.6 |
+| box_rotate | sd | 4 / 18 | off | deviating | 14.5 | 16.1 | 14.5 | 14.0 |  | 1.7 |
+| box_rotate | sd | 4 / 18 | fingers_up | dropped | at 2.92 s | | | | 6 gait index, closed | 1.5 |
+| box_rotate | sd | 4 / 18 | palm_up | dropped | at 1.69 s | | | | 4 gait thumb, open | 1.7 |
+| box_rotate | sd | 4 / 18 | palm_down | dropped | at 1.58 s | | | | 4 gait thumb, open | 1.2 |
+| box_shift | svd | 3 / 18 | off | deviating | 10.1 | 10.1 | 10.1 | 6.7 |  | 1.7 |
+| box_shift | svd | 3 / 18 | fingers_up | dropped | at 2.21 s | | | | 6 gait thumb, open | 1.6 |
+| box_shift | svd | 3 / 18 | palm_up | deviating | 8.5 | 14.5 | 3.7 | 3.1 |  | 2.4 |
+| box_shift | svd | 3 / 18 | palm_down | dropped | at 0.58 s | | | | 1 gait thumb, open | 1.3 |
+| box_shift | sd | 5 / 18 | off | deviating | 6.7 | 10.8 | 4.4 | 10.4 |  | 1.7 |
+| box_shift | sd | 5 / 18 | fingers_up | dropped | at 4.44 s | | | | 11 gait thumb, open | 1.4 |
+| box_shift | sd | 5 / 18 | palm_up | deviating | 14.2 | 17.6 | 10.1 | 13.4 |  | 2.2 |
+| box_shift | sd | 5 / 18 | palm_down | dropped | at 0.58 s | | | | 1 gait thumb, open | 1.5 |
+| cylinder_slide | svd | 17 / 29 | off | dropped | at 8.17 s | | | | 28 gait middle, open | 2.8 |
+| cylinder_slide | svd | 17 / 29 | fingers_up | dropped | at 1.41 s | | | | 4 gait thumb, open | 2.1 |
+| cylinder_slide | svd | 17 / 29 | palm_up | dropped | at 0.71 s | | | | 1 gait index, open | 2.2 |
+| cylinder_slide | svd | 17 / 29 | palm_down | dropped | at 1.33 s | | | | 4 gait thumb, open | 2.3 |
+| cylinder_slide | sd | 10 / 16 | off | deviating | 9.5 | 23.0 | 5.5 | 13.5 |  | 1.9 |
+| cylinder_slide | sd | 10 / 16 | fingers_up | dropped | at 1.41 s | | | | 4 gait thumb, open | 1.4 |
+| cylinder_slide | sd | 10 / 16 | palm_up | dropped | at 0.71 s | | | | 1 gait index, open | 1.4 |
+| cylinder_slide | sd | 10 / 16 | palm_down | dropped | at 1.33 s | | | | 4 gait thumb, open | 1.4 |
+
+held 0 / 32, dropped 25; final deviation of the not dropped: median 10.1 mm; wall time median 1.7 s, max 2.8 s
+
+22 of the 25 drops happen during a gait whose three holding fingers are not in force closure; with
+gravity off nothing is dropped on the box plans, but each open gait pushes the box 1.6-4.4 mm (box_shift
+svd) and the
+open-loop execution never corrects it. With `--grip squeeze` (2 mm, the uniform squeeze) the objects
+fall during the settle or the first gait under gravity (11 of 16 dropped over off / fingers up).
 """
 
 from __future__ import annotations

@@ -84,8 +84,9 @@ class SimOptions:
     hand_density: float = 1000.0
     """Density of the hand's collision spheres, kg/m³ (the links' mass and inertia come from them)."""
     hand_self_collision: bool = False
-    """False: hand bodies never collide with each other (the planner does not model it). True: they do,
-    except bodies of the same finger and adjacent links (always excluded)."""
+    """False: hand bodies never collide with each other (the planner does not model it, and the
+    conservative sphere covers of neighbouring fingers overlap by up to 30 mm in planned grasps). True:
+    they do, except bodies of the same finger and adjacent links (always excluded)."""
     # ---- object
     object_mass: float | None = None
     """Object mass, kg; None: mesh volume × `object_density`."""
