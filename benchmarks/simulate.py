@@ -53,8 +53,7 @@ held 0 / 32, dropped 25; final deviation of the not dropped: median 10.1 mm; wal
 
 22 of the 25 drops happen during a gait whose three holding fingers are not in force closure; with
 gravity off nothing is dropped on the box plans, but each open gait pushes the box 1.6-4.4 mm (box_shift
-svd) and the
-open-loop execution never corrects it. With `--grip squeeze` (2 mm, the uniform squeeze) the objects
+svd) and the open-loop execution never corrects it. With `--grip squeeze` (2 mm, the uniform squeeze) the objects
 fall during the settle or the first gait under gravity (11 of 16 dropped over off / fingers up).
 """
 
