@@ -233,25 +233,23 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     """Execute a plan in MuJoCo; exit 0 when the object is held within tolerance, 1 when dropped or
     deviating, 2 for bad input."""
     import json
-    import math
 
     from regrasp_casadi.simulate import SimOptions, simulate
 
     gravity = tuple(args.gravity) if args.gravity else (0.0, 0.0, 0.0)
-    if not all(math.isfinite(g) for g in gravity):
-        raise _UserError(f"--gravity: expected three finite numbers (m/s^2), got {args.gravity}")
+    out = check_output("--json", args.json)
     plan = _load_plan(args.plan)
     report = simulate(plan, options=SimOptions(gravity_palm=gravity))
     print(report.summary())
-    tol_mm, min_fingers = report.options["tol_position"] * 1e3, report.options["min_fingers"]
+    opts = report.options
     for rec in report.steps:
-        if rec.deviation_mm > tol_mm or len(rec.fingers_touching) < min_fingers:
+        if (rec.deviation_mm > opts["tol_position"] * 1e3 or rec.deviation_deg > opts["tol_rotation"]
+                or len(rec.fingers_touching) < opts["min_fingers"]):
             print(f"  first departure: step {rec.step} ({rec.kind}{' ' + rec.finger if rec.finger else ''}) "
                   f"at t = {rec.time:.2f} s: {rec.deviation_mm:.2f} mm / {rec.deviation_deg:.2f} deg, "
                   f"touching: {', '.join(rec.fingers_touching) or 'none'}")
             break
-    if args.json:
-        out = Path(args.json)
+    if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(report.to_dict(), indent=1))
         print(f"wrote {out}")
@@ -447,7 +445,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = add("simulate", "execute a plan in physics (MuJoCo) and report whether the object is held")
     sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
-    sp.add_argument("--gravity", type=float, nargs=3, metavar=("X", "Y", "Z"),
+    sp.add_argument("--gravity", type=_finite, nargs=3, metavar=("X", "Y", "Z"),
                     help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81)")
     sp.add_argument("--json", metavar="REPORT.json", help="write the simulation report as JSON")
     sp.set_defaults(func=cmd_simulate)

@@ -38,7 +38,7 @@ from regrasp_casadi.mujoco_model import SimOptions
 from regrasp_casadi.transforms import interpolate_pose
 
 if TYPE_CHECKING:  # pragma: no cover
-    from regrasp_casadi.grasp import Plan
+    from regrasp_casadi.plan import Plan
 
 __all__ = ["plan_motion", "step_durations", "step_end_times", "joint_commands", "grip_forces",
            "StepContacts", "step_contacts", "CONTROL_DT"]

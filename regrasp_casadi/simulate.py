@@ -40,7 +40,7 @@ from regrasp_casadi.sim_control import joint_commands, plan_motion, step_duratio
 from regrasp_casadi.transforms import rotation_angle
 
 if TYPE_CHECKING:  # pragma: no cover
-    from regrasp_casadi.grasp import Plan
+    from regrasp_casadi.plan import Plan
 
 __all__ = ["SimOptions", "SimReport", "StepRecord", "simulate", "plan_motion", "step_durations"]
 
@@ -116,15 +116,22 @@ class SimReport:
         return self.status == "held"
 
     def summary(self) -> str:
-        """One line: verdict, max and final deviation, simulated and wall time."""
-        last = self.steps[-1] if self.steps else None
+        """One line: verdict, max and final deviation (before the drop, for a dropped object), simulated
+        and wall time."""
         g_palm = tuple(self.options.get("gravity_palm", ()))
         g = "gravity off" if not any(g_palm) else (
             "gravity " + " ".join(f"{v:g}" for v in g_palm) + " m/s^2 in the palm frame")
-        text = (f"simulate: {self.status}; max deviation {self.max_deviation_mm:.2f} mm / "
-                f"{self.max_deviation_deg:.2f} deg")
-        if last is not None:
-            text += f", final {last.deviation_mm:.2f} mm / {last.deviation_deg:.2f} deg"
+        if self.dropped:
+            before = [r for r in self.steps if r.time < self.drop_time - 1e-9]
+            text = f"simulate: dropped at t = {self.drop_time:.2f} s"
+            if before:
+                text += (f"; before it max deviation {max(r.deviation_mm for r in before):.2f} mm / "
+                         f"{max(r.deviation_deg for r in before):.2f} deg")
+        else:
+            last = self.steps[-1]
+            text = (f"simulate: {self.status}; max deviation {self.max_deviation_mm:.2f} mm / "
+                    f"{self.max_deviation_deg:.2f} deg, final {last.deviation_mm:.2f} mm / "
+                    f"{last.deviation_deg:.2f} deg")
         text += (f"; {len(self.steps) - 1} steps, {self.sim_time:.2f} s simulated in {self.wall_time:.2f} s"
                  f" ({g})")
         return text + (f" [{self.detail}]" if self.detail else "")
@@ -285,15 +292,6 @@ def _verdict(records: list[StepRecord], drop_time: float | None, opts: SimOption
     return "held", "", False, None
 
 
-def _plan_models(plan: Plan):
-    """(hand, object) rebuilt from the plan's specs."""
-    try:
-        from regrasp_casadi.problem import plan_models  # after the restructure (issue 9)
-    except ImportError:
-        return plan.hand(), plan.object()
-    return plan_models(plan)
-
-
 def simulate(plan: Plan, hand=None, obj=None, options: SimOptions | None = None) -> SimReport:
     """Execute ``plan`` in MuJoCo and report how closely the object follows it.
 
@@ -308,9 +306,9 @@ def simulate(plan: Plan, hand=None, obj=None, options: SimOptions | None = None)
     t0 = time.perf_counter()
     opts = options or SimOptions()
     if hand is None or obj is None:
-        hand_p, obj_p = _plan_models(plan)
-        hand = hand if hand is not None else hand_p
-        obj = obj if obj is not None else obj_p
+        from regrasp_casadi.problem import plan_models
+
+        hand, obj = plan_models(plan, hand, obj)
     sim = build_model(hand, obj, opts)
     records, series, drop_time = _run(sim, plan, hand, opts)
     status, detail, dropped, drop_t = _verdict(records, drop_time, opts)
