@@ -392,6 +392,16 @@ def _add_verify_arguments(sp: argparse.ArgumentParser) -> None:
     sp.set_defaults(func=cmd_verify)
 
 
+def _add_simulate_parser(add) -> None:
+    """The `simulate` subcommand (``add(name, help)`` makes a subparser)."""
+    sp = add("simulate", "execute a plan in physics (MuJoCo) and report whether the object is held")
+    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
+    sp.add_argument("--gravity", type=_finite, nargs=3, metavar=("X", "Y", "Z"),
+                    help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81)")
+    sp.add_argument("--json", metavar="REPORT.json", help="write the simulation report as JSON")
+    sp.set_defaults(func=cmd_simulate)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The `regrasp` argument parser (one subparser per command)."""
     from regrasp_casadi import __version__
@@ -443,12 +453,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_host(sp)
     sp.set_defaults(func=cmd_view)
 
-    sp = add("simulate", "execute a plan in physics (MuJoCo) and report whether the object is held")
-    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
-    sp.add_argument("--gravity", type=_finite, nargs=3, metavar=("X", "Y", "Z"),
-                    help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81)")
-    sp.add_argument("--json", metavar="REPORT.json", help="write the simulation report as JSON")
-    sp.set_defaults(func=cmd_simulate)
+    _add_simulate_parser(add)
 
     sp = add("grasps", "generate precision grasps on a mesh (or a problem's object)")
     sp.add_argument("source", metavar="MESH_OR_PROBLEM", help="mesh file (.obj, .stl, ...) or problem .yaml")

@@ -211,7 +211,7 @@ def _quat_wxyz(R: NDArray) -> NDArray[np.float64]:
 
 
 def _read_urdf(hand):
-    """(link -> parent joint, link -> children joints, root link) of ``hand.urdf_path`` via yourdfpy."""
+    """(child link -> its parent joint, link -> its child joints) of ``hand.urdf_path`` (yourdfpy)."""
     import yourdfpy
 
     try:
