@@ -17,6 +17,7 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -209,7 +210,14 @@ class Hand:
     @classmethod
     def from_urdf(cls, path: str | Path, fingers: dict[str, str] | None = None) -> Hand:
         """Build a Hand from a URDF file; ``fingers`` maps finger name -> tip link (default: the
-        ``hand.yaml`` beside the URDF, else the leaf links)."""
+        ``hand.yaml`` beside the URDF, else the leaf links).
+
+        Raises:
+            TypeError: `path` is not a path (str or os.PathLike).
+            ModelError: as `Hand`.
+        """
+        if not isinstance(path, (str, os.PathLike)):
+            raise TypeError(f"path: expected a URDF file path, got {type(path).__name__}")
         return cls(path, fingers)
 
     @classmethod

@@ -24,9 +24,13 @@ that file describes this URDF.
     viewer:
       toward_palm_side: 0.6             # how far the camera turns from the grasp's side towards the palm
       lift: [0.0, 0.0, 0.3]             # palm-frame vector added to the viewing direction
+      colors:                           # replay colours "#rrggbb" (quoted: # starts a YAML comment):
+        palm: "#8d939c"                 #   the palm and links fixed to it, and any finger by name
+        index: "#d1495b"
 
 A URDF without such a file gets `fallback_metadata`: the fingers given (default: the leaf links), no thumb,
-gait order = finger order (never reversed), no grasp region (the Hand derives one), the default camera.
+gait order = finger order (never reversed), no grasp region (the Hand derives one), the default camera
+and colours (`regrasp_casadi.hand_visuals`).
 
 Every error is a `ModelError` naming the file and the joint, link or key.
 """
@@ -36,6 +40,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -48,6 +53,7 @@ from regrasp_casadi.errors import ModelError
 __all__ = [
     "DEFAULT_MODEL",
     "METADATA_FILE",
+    "PALM",
     "SUPPORTED_JOINTS",
     "CameraHint",
     "HandMetadata",
@@ -69,6 +75,9 @@ METADATA_FILE = "hand.yaml"
 """Name of the metadata file in a model folder."""
 METADATA_SCHEMA_VERSION = 1
 SUPPORTED_JOINTS = ("revolute", "continuous", "prismatic", "fixed")
+
+PALM = "palm"
+"""The name of the hand's non-finger part in ``viewer.colors``."""
 
 _META_KEYS = ("schema_version", "urdf", "fingers", "thumb", "gait", "grasp_region", "viewer")
 
@@ -334,6 +343,9 @@ class HandMetadata:
     None: the Hand derives one from its fingertips."""
     camera: CameraHint = field(default_factory=CameraHint)
     """The viewer's camera placement."""
+    colors: dict[str, str] = field(default_factory=dict)
+    """Replay colours ``"#rrggbb"`` by part: ``"palm"`` and finger names (``viewer.colors``); a part not
+    named gets the viewer's default (`regrasp_casadi.hand_visuals.hand_colors`)."""
     source: Path | None = None
     """The ``hand.yaml`` read (None: fallback metadata)."""
 
@@ -342,11 +354,13 @@ def fallback_metadata(fingers: dict[str, str], base: HandMetadata | None = None)
     """Metadata for `fingers` without a metadata file: no thumb, gait order = finger order (never reversed).
 
     `base` (the metadata file of the URDF, whose fingers differ from `fingers`) lends its hand-level
-    entries, which do not name fingers: the grasp region, the camera and the source.
+    entries, which do not name fingers: the grasp region, the camera, the source, and the colours of the
+    palm and of the fingers that keep their names.
     """
     base = base if base is not None else HandMetadata(fingers={})
+    colors = {k: c for k, c in base.colors.items() if k == PALM or k in fingers}
     return dataclasses.replace(base, fingers=dict(fingers), thumb=None, gait_forward=tuple(fingers),
-                               gait_reversible=False)
+                               gait_reversible=False, colors=colors)
 
 
 def load_metadata(urdf: UrdfModel) -> HandMetadata | None:
@@ -388,8 +402,9 @@ def read_metadata(path: str | Path, urdf: UrdfModel, raw: dict | None = None) ->
         raise error("thumb", f"{thumb!r} is not a finger (fingers: {', '.join(fingers)})")
     forward, reversible = _gait(error, raw.get("gait", {}), fingers)
     region = _region(error, raw["grasp_region"]) if "grasp_region" in raw else None
-    camera = _camera(error, raw.get("viewer", {}))
-    return HandMetadata(fingers, thumb, forward, reversible, region, camera, path.resolve())
+    camera, colors = _viewer(error, raw.get("viewer", {}), fingers)
+    return HandMetadata(fingers, thumb, forward, reversible, region, camera, colors=colors,
+                        source=path.resolve())
 
 
 def _read_yaml(path: Path) -> dict:
@@ -445,14 +460,25 @@ def _region(error, v: Any):
     return lower, upper
 
 
-def _camera(error, v: Any) -> CameraHint:
-    if not isinstance(v, dict) or any(k not in ("toward_palm_side", "lift") for k in v):
-        raise error("viewer", "expected a mapping with the keys toward_palm_side and lift")
+def _viewer(error, v: Any, fingers: dict[str, str]) -> tuple[CameraHint, dict[str, str]]:
+    """The ``viewer`` section: the camera hint and the colours (checked ``"#rrggbb"``, lower case)."""
+    if not isinstance(v, dict) or any(k not in ("toward_palm_side", "lift", "colors") for k in v):
+        raise error("viewer", "expected a mapping with the keys toward_palm_side, lift and colors")
     default = CameraHint()
     toward = _numbers(error, "viewer.toward_palm_side", [v.get("toward_palm_side", default.toward_palm_side)],
                       1)[0]
     lift = _numbers(error, "viewer.lift", v.get("lift", list(default.lift_palm)), 3)
-    return CameraHint(toward, lift)
+    colors = v.get("colors", {})
+    if not isinstance(colors, dict):
+        raise error("viewer.colors", f"expected a mapping {{part: '#rrggbb'}}, got {colors!r}")
+    for part, color in colors.items():
+        if part != PALM and part not in fingers:
+            raise error(f"viewer.colors.{part}",
+                        f"not a part of the hand (parts: {PALM}, {', '.join(fingers)})")
+        if not (isinstance(color, str) and re.fullmatch(r"#[0-9A-Fa-f]{6}", color)):
+            hint = " (quote it: # starts a YAML comment)" if color is None else ""
+            raise error(f"viewer.colors.{part}", f"expected a colour '#rrggbb', got {color!r}{hint}")
+    return CameraHint(toward, lift), {str(k): c.lower() for k, c in colors.items()}
 
 
 # ------------------------------------------------------------------------------------------ model folders

@@ -2,11 +2,15 @@
 
 `RecordingWindow` stands in for meshcat-python's `ViewerWindow` (no zmq server, no port): it keeps the
 scene tree the server would keep and renders the static HTML the way the server's `get_scene` does,
-except that animations go last. `text_and_plane_classes` gives two element types the Meshcat viewer
-draws but meshcat-python 0.3.2 lacks. meshcat is imported lazily, inside the functions.
+except that animations go last, and with an optional overlay (HTML put over the 3D view, e.g. a legend).
+`text_and_plane_classes` gives two element types the Meshcat viewer draws but meshcat-python 0.3.2 lacks;
+`mesh_in_order` a mesh with a three.js ``renderOrder`` (drawn after the scene: markers that stay visible).
+meshcat is imported lazily, inside the functions.
 
-    >>> vis = import_meshcat().Visualizer(window=RecordingWindow())
+    >>> window = RecordingWindow()
+    >>> vis = import_meshcat().Visualizer(window=window)
     >>> ...  # vis[path].set_object(...), set_transform, set_animation
+    >>> window.overlay = "<div>legend</div>"   # optional
     >>> html = vis.static_html()
 """
 
@@ -16,7 +20,7 @@ import base64
 import warnings
 from pathlib import Path
 
-__all__ = ["RecordingWindow", "HTML_TEMPLATE", "import_meshcat", "text_and_plane_classes"]
+__all__ = ["RecordingWindow", "HTML_TEMPLATE", "import_meshcat", "mesh_in_order", "text_and_plane_classes"]
 
 
 class RecordingWindow:
@@ -29,6 +33,8 @@ class RecordingWindow:
 
         self.tree = SceneTree()
         self.web_url = ""
+        self.overlay = ""
+        """HTML put after the viewer's scripts (over the 3D view), e.g. `replay_overlay.overlay_html`."""
 
     def send(self, command) -> None:
         import umsgpack
@@ -74,7 +80,7 @@ class RecordingWindow:
         import meshcat
 
         js = (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text(encoding="utf-8")
-        return HTML_TEMPLATE.format(mainminjs=js, commands="".join(commands))
+        return HTML_TEMPLATE.format(mainminjs=js, commands="".join(commands), overlay=self.overlay)
 
 
 HTML_TEMPLATE = """<!DOCTYPE html>
@@ -91,6 +97,7 @@ var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
 </script>
 <style> body {{margin: 0; }} #meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }} </style>
 <script id="embedded-json"></script>
+{overlay}
 </body>
 </html>
 """
@@ -131,3 +138,18 @@ def text_and_plane_classes():
                     "widthSegments": 1, "heightSegments": 1}
 
     return TextTexture, Plane
+
+
+def mesh_in_order(geometry, material, render_order: int):
+    """A Meshcat mesh drawn in three.js ``renderOrder`` `render_order` (objects of a higher order are drawn
+    later; with a material that does not depth-test, over everything drawn before). For a transparent
+    material (three.js draws transparent objects after the opaque ones) that is over the whole scene."""
+    import meshcat.geometry as g
+
+    class OrderedMesh(g.Mesh):
+        def lower(self):
+            data = super().lower()
+            data["object"]["renderOrder"] = int(render_order)
+            return data
+
+    return OrderedMesh(geometry, material)

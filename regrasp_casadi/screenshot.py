@@ -1,6 +1,6 @@
 """Screenshots of HTML replays with headless Chromium (Debian's `chromium`), for docs and the browser test.
 
-    >>> screenshot("replay.html", "replay.png")          # the scene after `seconds` of replay
+    >>> screenshot("replay.html", "replay.png", seconds=2.5)   # the replay held at 2.5 s
 """
 
 from __future__ import annotations
@@ -17,6 +17,9 @@ __all__ = ["find_chromium", "screenshot"]
 
 # Flags that draw Meshcat's WebGL in headless Chromium on a machine without a GPU or network
 # (SwiftShader; see DESIGN.md "Viewer notes").
+LOAD_MS = 3000
+"""Virtual time (ms) given to the page to load before the replay time: a replay is opened at
+``#t=<seconds>`` and holds that instant (`replay_overlay`), so the picture does not depend on the load."""
 _FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
           "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run")
 
@@ -31,14 +34,16 @@ def find_chromium() -> str | None:
 
 def screenshot(html: str | Path, png: str | Path, *, width: int = 800, height: int = 600,
                seconds: float = 8.0, chromium: str | None = None, timeout: float = 120.0) -> Path:
-    """Render `html` in headless Chromium and write a `width` × `height` PNG after `seconds` of
-    (virtual) time, so that a replay has played that long.
+    """Render `html` in headless Chromium and write a `width` × `height` PNG of the replay at `seconds`.
+
+    The page is opened at ``#t=<seconds>``, where a replay (`viewer.write_html`) holds that instant, and
+    given `seconds` + `LOAD_MS` of virtual time (a page that ignores ``#t`` is pictured then).
 
     Args:
         html: the HTML file.
         png: the image to write (parent folders are created).
         width, height: image size, pixels.
-        seconds: replay time of the image, s (>= 0; 0 is the first frame).
+        seconds: replay time of the image, s (>= 0; 0 is the first frame; past the end: the end).
         chromium: Chromium executable (default: `find_chromium()`).
         timeout: seconds to wait for Chromium.
 
@@ -56,10 +61,9 @@ def screenshot(html: str | Path, png: str | Path, *, width: int = 800, height: i
     png.parent.mkdir(parents=True, exist_ok=True)
     png.unlink(missing_ok=True)
     with tempfile.TemporaryDirectory(prefix="regrasp-chromium-") as profile:
-        # a budget of 0 ms never fires (Chromium waits for the page forever): 1 ms is the first frame
-        budget_ms = max(1, round(seconds * 1000))
+        budget_ms = round(seconds * 1000) + LOAD_MS
         cmd = [chromium, *_FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",
-               f"--virtual-time-budget={budget_ms}", f"--screenshot={png}", html.as_uri()]
+               f"--virtual-time-budget={budget_ms}", f"--screenshot={png}", f"{html.as_uri()}#t={seconds:g}"]
         try:
             proc = subprocess.run(cmd, check=False, capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired:

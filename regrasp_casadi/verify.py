@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import os
 import sys
 import types
 from collections.abc import Callable
@@ -438,7 +439,7 @@ def _record_final_metrics(ctx: VerifyContext) -> None:
 
 # ---------------------------------------------------------------------------------------------- verify
 def verify(
-    plan: Plan,
+    plan: Plan | str | os.PathLike,
     hand: Hand | None = None,
     obj: ObjectModel | None = None,
     *,
@@ -457,7 +458,7 @@ def verify(
     plan cannot loosen the bounds it is judged by.
 
     Args:
-        plan: the plan.
+        plan: the plan, or the path of a plan file (read with `Plan.load`).
         hand: the hand (default: rebuilt from the plan, `problem.plan_models`).
         obj: the object (default: rebuilt from the plan, `problem.plan_models`).
         surface_tol: allowed |exact distance of a tip centre − tip radius|, m.
@@ -472,9 +473,14 @@ def verify(
 
     Returns:
         VerifyReport with ok, violations and metrics.
+
+    Raises:
+        TypeError: `plan` is neither a Plan nor a path.
+        PlanFormatError: the plan file cannot be read (`Plan.load`).
     """
     from regrasp_casadi.problem import plan_models  # lazy: importing verify loads no model code
 
+    plan = _as_plan(plan)
     hand, obj = plan_models(plan, hand, obj)
     tol = Tolerances(surface_tol=float(surface_tol), min_clearance=float(min_clearance),
                      limit_tol=float(limit_tol), eta=float(eta), zeta=float(zeta), max_slip=float(max_slip),
@@ -489,6 +495,17 @@ def verify(
     violations = _run_checks(ctx, [c for c in CHECK_TABLE if c.needs_geometry], (record_holding_quality,))
     _record_final_metrics(ctx)
     return _report(violations, ctx.metrics)
+
+
+def _as_plan(plan: Any) -> Plan:
+    """`plan` itself, or the plan read from a file path (str or os.PathLike)."""
+    from regrasp_casadi.plan import Plan
+
+    if isinstance(plan, Plan):
+        return plan
+    if isinstance(plan, (str, os.PathLike)):
+        return Plan.load(plan)
+    raise TypeError(f"plan: expected a Plan or a plan file path, got {type(plan).__name__}")
 
 
 def _plan_form_problem(ctx: VerifyContext) -> str:

@@ -9,14 +9,18 @@ finger gaits and reposings are visible. There is one keyframe exactly at each st
 thin shells over Meshcat, imported lazily inside them (`import regrasp_casadi.viewer` never imports
 meshcat nor starts a server). The scene, drawn in the palm frame:
 
-* the hand, from its URDF visual geometry (boxes, cylinders, spheres, meshes; a link without visuals
-  falls back to its collision geometry), in one colour (`HAND_COLOR`, steel blue);
-* the object mesh (`OBJECT_COLOR`, amber);
-* the desired contacts as green spheres fixed to the object frame (as in the paper's plan figures);
-* the current contacts as red spheres;
-* the step number, kind and moved finger as a text label (a Meshcat `_text` canvas texture on a plane
-  attached to the camera, so it stays in view), one label per step whose `visible` flag is animated;
-  the HTML `<title>` names the plan (steps, method, status).
+* the hand (`hand_visuals`): the visual meshes of its URDF when it has them (a vendor URDF), else
+  shapes that read as the robot (rounded boxes), one colour per finger and a grey palm (hand.yaml's
+  ``viewer.colors``, with defaults), light fingertips;
+* the object mesh (`OBJECT_COLOR`, a light sand colour, slightly transparent);
+* the desired contacts as blue rings (`GOAL_COLOR`) fixed to the object frame (as in the paper's plan
+  figures) and the current contacts as orange dots (`CONTACT_COLOR`; Okabe–Ito colours, told apart by
+  shape too), each outlined in black and drawn over everything (their materials do not depth-test, and
+  they are drawn last), so that a contact behind the object or a finger stays visible;
+* what is happening: the label of the step being moved into ("gait 3/33: index finger", `step_label`).
+  The static HTML shows it in an HTML overlay (`replay_overlay`) with a progress bar and a legend of the
+  colours; the live viewer shows it as a Meshcat `_text` plane attached to the camera, one per step
+  whose `visible` flag is animated. The HTML `<title>` names the plan (steps, method, status).
 
 Only transforms and visibility are animated; geometry is sent once. The static HTML's static scene
 is the final step (what a page shows if it does not play the animation); the live viewer's is the
@@ -38,8 +42,18 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
 from regrasp_casadi.files import atomic_write_text
-from regrasp_casadi.meshcat_html import RecordingWindow, import_meshcat, text_and_plane_classes
+from regrasp_casadi.hand_visuals import hand_colors, hand_visuals
+from regrasp_casadi.meshcat_html import RecordingWindow, import_meshcat, mesh_in_order
 from regrasp_casadi.problem import plan_models
+from regrasp_casadi.replay_overlay import LegendEntry, overlay_html
+from regrasp_casadi.scene_hud import (
+    CAMERA_FOV_DEG,
+    LABELS,
+    LEGEND,
+    add_legend,
+    add_step_labels,
+    animate_step_labels,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
@@ -51,17 +65,20 @@ __all__ = ["Keyframe", "plan_keyframes", "step_times", "write_html", "show", "sc
 
 logger = logging.getLogger(__name__)
 
-HAND_COLOR = 0x3366CC       # steel blue
-OBJECT_COLOR = 0xF2A93B     # amber
-OBJECT_OPACITY = 0.7        # see the contacts behind the object
-GOAL_COLOR = 0x22BB33       # green: desired contacts
-CONTACT_COLOR = 0xE02020    # red: current contacts
-GOAL_RADIUS = 0.006         # m
-CONTACT_RADIUS = 0.0035     # m
+OBJECT_COLOR = 0xE2CFA6     # light sand
+OBJECT_OPACITY = 0.8        # a finger behind the object shows through
+CONTACT_COLOR = 0xE69F00    # Okabe-Ito orange: current contacts (filled dots)
+GOAL_COLOR = 0x0072B2       # Okabe-Ito blue: desired contacts (rings)
+OUTLINE_COLOR = 0x1A1A1A    # the markers' outline
+EDGE_COLOR = 0x8A7650       # the object's sharp edges
+EDGE_ANGLE_DEG = 50.0
+CONTACT_RADIUS = 0.0035     # m, the current-contact dot (its outline: x OUTLINE_SCALE)
+GOAL_RADIUS = 0.0055        # m, the desired-contact ring (its hole: x GOAL_HOLE)
+OUTLINE_SCALE = 1.4
+GOAL_HOLE = 0.6
+MARKER_RENDER_ORDER = 10    # three.js renderOrder of the markers: drawn after the scene (order 0)
 
 _ROOT = "regrasp"          # under /meshcat
-_LABELS = "/Cameras/default/rotated/<object>/labels"
-_CAMERA_FOV_DEG = 75.0      # Meshcat's default perspective camera
 
 LIVE_VIEWERS: list = []     # live visualizers started by `show` (kept alive here)
 
@@ -179,63 +196,6 @@ def plan_keyframes(
     return frames
 
 
-# --------------------------------------------------------------------------------------------------------
-# Scene description (pure): visual geometry of the hand read from its URDF.
-
-
-@dataclass(frozen=True)
-class VisualShape:
-    """One visual primitive of a link: kind "box" (size (3,)), "cylinder" (radius, length along z),
-    "sphere" (radius) or "mesh" (vertices (v,3), faces (f,3)), placed by T_link_visual (4, 4), m."""
-
-    link: str
-    kind: str
-    T_link_visual: NDArray
-    params: dict[str, Any]
-
-
-def hand_visuals(hand: Hand) -> list[VisualShape]:
-    """Visual shapes of every link of `hand`, read from its URDF with yourdfpy (collision geometry for a
-    link that has no visual)."""
-    import trimesh
-    import yourdfpy
-
-    urdf_path = Path(hand.urdf_path)
-    robot = yourdfpy.URDF.load(
-        str(urdf_path), build_scene_graph=False, load_meshes=False, load_collision_meshes=False
-    )
-    shapes: list[VisualShape] = []
-    for link in robot.robot.links:
-        elements = list(link.visuals) or list(link.collisions)
-        for el in elements:
-            g = el.geometry
-            T = np.eye(4) if el.origin is None else np.asarray(el.origin, dtype=float)
-            if g.box is not None:
-                shapes.append(VisualShape(link.name, "box", T, {"size": np.asarray(g.box.size, float)}))
-            elif g.cylinder is not None:
-                shapes.append(VisualShape(link.name, "cylinder", T,
-                                          {"radius": float(g.cylinder.radius),
-                                           "length": float(g.cylinder.length)}))
-            elif g.sphere is not None:
-                shapes.append(VisualShape(link.name, "sphere", T, {"radius": float(g.sphere.radius)}))
-            elif g.mesh is not None:
-                fname = g.mesh.filename
-                for prefix in ("package://", "file://"):
-                    if fname.startswith(prefix):
-                        fname = fname[len(prefix):]
-                path = Path(fname) if Path(fname).is_absolute() else urdf_path.parent / fname
-                if not path.exists():
-                    logger.warning("visual mesh %s of link %s not found; skipped", path, link.name)
-                    continue
-                mesh = trimesh.load(str(path), force="mesh")
-                scale = np.ones(3) if g.mesh.scale is None else np.broadcast_to(
-                    np.asarray(g.mesh.scale, float), (3,))
-                shapes.append(VisualShape(link.name, "mesh", T,
-                                          {"vertices": np.asarray(mesh.vertices) * scale,
-                                           "faces": np.asarray(mesh.faces)}))
-    return shapes
-
-
 def _scene_bounds(frames: list[Keyframe], obj: ObjectModel) -> tuple[NDArray, float]:
     """Centre (3,) and radius (m) of a sphere holding every link origin and the object at every step."""
     pts = []
@@ -280,15 +240,25 @@ def camera_offset(frames: list[Keyframe], center: NDArray, radius: float,
     side /= np.linalg.norm(side)
     v = side + view.toward_palm_side * u + np.asarray(view.lift_palm, dtype=float)
     v /= np.linalg.norm(v)
-    dist = 1.2 * radius / np.tan(np.radians(_CAMERA_FOV_DEG) / 2.0)
+    dist = 1.2 * radius / np.tan(np.radians(CAMERA_FOV_DEG) / 2.0)
     return v * dist
 
 
+_KIND_TEXT = {"initial": "initial grasp", "gait": "gait", "repose": "repose", "final": "final move"}
+
+
 def step_label(plan: Plan, i: int) -> str:
-    """Text shown during step i, e.g. "step 3/12  gait: index"."""
+    """Text shown while the replay moves into step i: "gait 3/33: index finger", "repose 7/33",
+    "initial grasp 0/33", "final move 33/33" (`finger_phrase`)."""
     st = plan.steps[i]
-    text = f"step {i}/{len(plan.steps) - 1}  {st.kind}"
-    return text + (f": {st.finger}" if st.finger else "")
+    text = f"{_KIND_TEXT.get(st.kind, st.kind)} {i}/{len(plan.steps) - 1}"
+    return text + (f": {finger_phrase(st.finger)}" if st.finger else "")
+
+
+def finger_phrase(finger: str) -> str:
+    """"index" -> "index finger"; a name that says "thumb" or "finger" stays as it is."""
+    name = str(finger)
+    return name if any(w in name.lower() for w in ("thumb", "finger")) else f"{name} finger"
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -302,13 +272,14 @@ def _rot_x90() -> NDArray:
 
 
 def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Keyframe], fps: float,
-                 static_frame: int = -1) -> None:
+                 static_frame: int = -1, scene_hud: bool = True) -> None:
     """Send geometry once, `frames[static_frame]` as the static pose, and the animation of transforms.
 
     The static pose is what a viewer shows before the animation starts and where a property is not
     animated yet; it must equal the animation's first frame when the animation may reach the browser
     before the static commands (meshcat's live server replays the animation first), see
-    `meshcat_html.RecordingWindow.get_scene`.
+    `meshcat_html.RecordingWindow.get_scene`. `scene_hud`: the step labels and the legend drawn in the
+    scene (`scene_hud`: the live viewer; the static HTML has its HTML overlay instead).
     """
     import meshcat.animation as mca
 
@@ -319,7 +290,7 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
     vis["/Grid"].set_property("visible", False)
     vis["/Axes"].set_property("visible", False)
     vis["/Background"].set_property("top_color", [1.0, 1.0, 1.0])
-    vis["/Background"].set_property("bottom_color", [1.0, 1.0, 1.0])
+    vis["/Background"].set_property("bottom_color", [0.9, 0.92, 0.95])   # a light floor-like gradient
     off = camera_offset(frames, center, radius, hand)
     vis["/Cameras/default"].set_transform(np.eye(4))
     # the camera lives in a frame rotated +90° about x (three.js y-up): world (a, b, c) -> (a, c, -b)
@@ -330,84 +301,80 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
     _add_hand_geometry(root["hand"], hand)
     _add_object(root["object"], plan, obj)
     _add_contact_markers(root["contacts"], plan)
-    _add_step_labels(vis[_LABELS], plan, float(np.linalg.norm(off)), frames[static_frame].step)
+    if scene_hud:
+        labels = [step_label(plan, i) for i in range(len(plan.steps))]
+        add_step_labels(vis[LABELS], labels, float(np.linalg.norm(off)), frames[static_frame].step)
+        add_legend(vis[LEGEND], legend_entries(plan, hand, obj), float(np.linalg.norm(off)))
     _set_pose(root, plan, frames[static_frame])
     anim = mca.Animation(default_framerate=fps)
     _animate_transforms(anim, root, plan, frames, fps)
-    _animate_step_labels(anim, vis[_LABELS], len(plan.steps), frames, fps)
+    if scene_hud:
+        animate_step_labels(anim, vis[LABELS], [f.time for f in frames if f.alpha >= 1.0], fps)
     vis.set_animation(anim, play=True, repetitions=1)
 
 
 def _add_hand_geometry(hand_node, hand: Hand) -> None:
-    """The hand's visual shapes, one node per shape under `hand_node/<link>` (animated per link)."""
+    """The hand's coloured shapes (`hand_visuals`), one node per shape under `hand_node/<link>` (animated
+    per link)."""
     import meshcat.geometry as g
 
-    hand_mat = g.MeshLambertMaterial(color=HAND_COLOR)
+    materials: dict[int, Any] = {}
     for n, sh in enumerate(hand_visuals(hand)):
         node = hand_node[sh.link][f"v{n}"]
         T = sh.T_link_visual
-        if sh.kind == "box":
-            geom = g.Box(list(sh.params["size"]))
-        elif sh.kind == "sphere":
+        mat = materials.setdefault(sh.color, g.MeshPhongMaterial(color=sh.color, shininess=40,
+                                                                 specular=0x2A2A2A))
+        if sh.kind == "sphere":
             geom = g.Sphere(sh.params["radius"])
         elif sh.kind == "cylinder":  # three.js cylinders run along y, URDF ones along z
             geom = g.Cylinder(sh.params["length"], sh.params["radius"])
             T = T @ _rot_x90()
         else:
             geom = g.TriangularMeshGeometry(sh.params["vertices"], sh.params["faces"])
-        node.set_object(geom, hand_mat)
+        node.set_object(geom, mat)
         node.set_transform(T)
 
 
 def _add_object(object_node, plan: Plan, obj: ObjectModel) -> None:
-    """The object mesh and the desired contacts (green spheres) fixed in the object frame."""
+    """The object mesh (shaded smoothly except along sharp edges) and the desired contacts (outlined blue
+    rings, `_marker`) fixed in the object frame."""
     import meshcat.geometry as g
 
-    mesh = obj.mesh
+    shaded = obj.mesh.smooth_shaded
     object_node["mesh"].set_object(
-        g.TriangularMeshGeometry(np.asarray(mesh.vertices), np.asarray(mesh.faces)),
-        g.MeshLambertMaterial(color=OBJECT_COLOR, opacity=OBJECT_OPACITY))
-    goal_geom, goal_mat = g.Sphere(GOAL_RADIUS), g.MeshLambertMaterial(color=GOAL_COLOR)
+        g.TriangularMeshGeometry(np.asarray(shaded.vertices), np.asarray(shaded.faces)),
+        g.MeshPhongMaterial(color=OBJECT_COLOR, opacity=OBJECT_OPACITY, shininess=20, specular=0x222222))
+    mesh = obj.mesh   # its sharp edges (faces meeting at more than EDGE_ANGLE_DEG) drawn as thin lines
+    sharp = mesh.face_adjacency_edges[mesh.face_adjacency_angles > np.radians(EDGE_ANGLE_DEG)]
+    if len(sharp):
+        ends = np.asarray(mesh.vertices, dtype=np.float32)[sharp].reshape(-1, 3)
+        object_node["edges"].set_object(g.LineSegments(g.PointsGeometry(ends.T),
+                                                       g.LineBasicMaterial(color=EDGE_COLOR)))
     for r, p in enumerate(np.asarray(plan.goal_contacts_object, dtype=float)):
         node = object_node["goal_contacts"][str(plan.fingers[r])]
-        node.set_object(goal_geom, goal_mat)
+        _marker(node, [(OUTLINE_SCALE * GOAL_RADIUS, OUTLINE_COLOR), (GOAL_RADIUS, GOAL_COLOR),
+                       (GOAL_HOLE * GOAL_RADIUS, 0xFFFFFF)], MARKER_RENDER_ORDER)
         node.set_transform(_translation(p))
 
 
 def _add_contact_markers(contacts_node, plan: Plan) -> None:
-    """One red sphere per finger for the current contact (placed in the palm frame by the animation)."""
-    import meshcat.geometry as g
-
-    contact_geom, contact_mat = g.Sphere(CONTACT_RADIUS), g.MeshLambertMaterial(color=CONTACT_COLOR)
+    """One outlined orange dot per finger for the current contact (placed in the palm frame by the
+    animation), drawn after the desired contacts' rings: a contact on its goal is a dot in a ring."""
     for finger in plan.fingers:
-        contacts_node[str(finger)].set_object(contact_geom, contact_mat)
+        _marker(contacts_node[str(finger)], [(OUTLINE_SCALE * CONTACT_RADIUS, OUTLINE_COLOR),
+                                             (CONTACT_RADIUS, CONTACT_COLOR)], MARKER_RENDER_ORDER + 3)
 
 
-def _add_step_labels(labels_node, plan: Plan, camera_distance: float, static_step: int) -> None:
-    """One textured plane per step attached to the camera (a HUD); only `static_step`'s is visible.
-
-    `camera_distance` (m) is the camera's distance from the scene centre: the labels sit at a quarter
-    of it in front of the camera, so that the scene never hides them.
-    """
+def _marker(node, discs: list[tuple[float, int]], render_order: int) -> None:
+    """Concentric flat-coloured spheres (radius m, colour) under `node`, drawn over the whole scene in the
+    given order (materials without depth test, transparent so that three.js draws them after the opaque
+    scene, increasing renderOrder): seen from anywhere, an outlined disc or ring."""
     import meshcat.geometry as g
 
-    TextTexture, Plane = text_and_plane_classes()
-    dist = 0.25 * camera_distance
-    half_h = dist * np.tan(np.radians(_CAMERA_FOV_DEG) / 2.0)
-    size = 0.6 * half_h
-    T_cam_label = np.eye(4)
-    T_cam_label[:3, 3] = [-1.25 * half_h + size / 2, half_h - size * 0.3, -dist]
-    n_steps = len(plan.steps)
-    # one font size for every label (the viewer shrinks text to its 256 px canvas): fit the longest
-    font_size = int(min(40, 256 / (0.56 * max(len(step_label(plan, i)) for i in range(n_steps)))))
-    for i in range(n_steps):
-        node = labels_node[f"step_{i}"]
-        node.set_object(Plane(size, size),
-                        g.MeshBasicMaterial(map=TextTexture(step_label(plan, i), font_size=font_size),
-                                            transparent=True,
-                                            depthTest=False, depthWrite=False))
-        node.set_transform(T_cam_label)
-        node.set_property("visible", i == static_step)
+    for k, (radius, color) in enumerate(discs):
+        mat = g.MeshBasicMaterial(color=color, transparent=True, opacity=1.0, depthTest=False,
+                                  depthWrite=False)
+        node[f"disc{k}"].set_object(mesh_in_order(g.Sphere(radius), mat, render_order + k))
 
 
 def _set_pose(root, plan: Plan, f: Keyframe) -> None:
@@ -429,20 +396,6 @@ def _animate_transforms(anim, root, plan: Plan, frames: list[Keyframe], fps: flo
     for r, finger in enumerate(plan.fingers):
         Ts = np.stack([_translation(f.p_palm_contacts[r]) for f in frames])
         _transform_tracks(anim, root["contacts"][str(finger)].path, key_frames, Ts, fps)
-
-
-def _animate_step_labels(anim, labels_node, n_steps: int, frames: list[Keyframe], fps: float) -> None:
-    """Boolean (discrete) visibility tracks: label i is on from step i to step i + 1."""
-    import meshcat.animation as mca
-
-    t_steps = [f.time for f in frames if f.alpha >= 1.0]   # the keyframes exactly at the steps
-    for i in range(n_steps):
-        keys = {0.0: False, t_steps[i]: True}
-        if i + 1 < n_steps:
-            keys[t_steps[i + 1]] = False
-        clip = anim.clips.setdefault(labels_node[f"step_{i}"].path, mca.AnimationClip(fps=fps))
-        clip.tracks["visible"] = mca.AnimationTrack(
-            "visible", "boolean", [t * fps for t in keys], list(keys.values()))
 
 
 def _translation(p: NDArray) -> NDArray:
@@ -481,14 +434,36 @@ def _title(plan: Plan, obj: ObjectModel) -> str:
             f"{plan.status}, {plan.iterations} iterations")
 
 
+LEGEND_HINT = "drag: turn · scroll: zoom · Open Controls › Animations: play again, scrub time"
+
+
+def legend_entries(plan: Plan, hand: Hand, obj: ObjectModel) -> list[LegendEntry]:
+    """The legend of the replay, top to bottom: contact markers, fingers (in the plan's finger order),
+    palm, object."""
+    colors = hand_colors(hand)
+    rows = [LegendEntry("dot", CONTACT_COLOR, "current contact"),
+            LegendEntry("ring", GOAL_COLOR, "desired contact")]
+    for finger in plan.fingers:
+        rows.append(LegendEntry("block", colors.get(str(finger), colors["palm"]), finger_phrase(finger)))
+    rows.append(LegendEntry("block", colors["palm"], "palm"))
+    rows.append(LegendEntry("block", OBJECT_COLOR, f"object ({obj.name})"))
+    return rows
+
+
 def scene_html(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, fps: float = 8,
                seconds_per_step: float = 0.8) -> str:
     """The self-contained HTML replay of `plan` as a string (see `write_html`)."""
     meshcat = import_meshcat()
     hand, obj = plan_models(plan, hand, obj)
     frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
-    vis = meshcat.Visualizer(window=RecordingWindow())
-    _build_scene(vis, plan, hand, obj, frames, fps)
+    window = RecordingWindow()
+    vis = meshcat.Visualizer(window=window)
+    _build_scene(vis, plan, hand, obj, frames, fps, scene_hud=False)
+    times = step_times(plan, seconds_per_step)
+    subtitle = (f"{obj.name} · method {plan.method} · {plan.status} after {plan.iterations} "
+                f"iteration{'s' if plan.iterations != 1 else ''}")
+    window.overlay = overlay_html(subtitle, [step_label(plan, i) for i in range(len(plan.steps))], times,
+                                  legend_entries(plan, hand, obj), hint=LEGEND_HINT)
     html = vis.static_html()
     title = _title(plan, obj).replace("&", "&amp;").replace("<", "&lt;")
     return html.replace("<title>MeshCat</title>", f"<title>{title}</title>", 1)

@@ -151,6 +151,10 @@ def test_shipped_urdf_by_path_is_the_shipped_model(hand):
     ({"gait": {"forward": ["second", "first", "opposer"], "reversible": "yes"}}, r"gait.reversible"),
     ({"grasp_region": {"lower": [0, 0, 1], "upper": [1, 1, 0]}}, r"grasp_region: lower .* exceeds upper"),
     ({"viewer": {"lift": [0, 1]}}, r"viewer.lift: expected a list of 3"),
+    ({"viewer": {"colors": {"pinky": "#ff0000"}}}, r"viewer.colors.pinky: not a part of the hand"),
+    ({"viewer": {"colors": {"first": "red"}}}, r"viewer.colors.first: expected a colour '#rrggbb', got"),
+    ({"viewer": {"colors": {"palm": None}}}, r"viewer.colors.palm: .* got None \(quote it: # starts a YAML"),
+    ({"viewer": {"colors": ["#ff0000"]}}, r"viewer.colors: expected a mapping"),
     ({"colour": "red"}, r"hand.yaml: colour: unknown key"),
     ({"schema_version": 2}, r"hand.yaml: schema_version: expected 1"),
 ])

@@ -1,6 +1,7 @@
 """Release checklist of issue 11, items 2, 4 (bad output paths), 7 and 8: the live viewer listens on
 127.0.0.1 only; bad output paths are found before planning; each weak error is one line naming the
-argument, file or key (exit 2); long work shows progress, `--help` shows defaults.
+argument, file or key (exit 2), API misuse a TypeError naming the argument (`verify(123)`,
+`Hand.from_urdf(123)`); long work shows progress, `--help` shows defaults.
 """
 
 from __future__ import annotations
@@ -274,6 +275,37 @@ def test_api_misuse_names_the_argument(box_problem):
     with pytest.raises(TypeError, match=r"^grasp_goal: expected a Grasp"):
         require_grasp(None, "grasp_goal")
     assert require_grasp(g0, "grasp0") is g0
+
+
+def test_verify_takes_a_plan_or_a_plan_file_path(plan_file, tmp_path):
+    """verify(path) reads the plan with Plan.load: the same report as verify(Plan.load(path)); anything
+    else is a TypeError naming the argument."""
+    from regrasp_casadi import verify
+    from regrasp_casadi.errors import PlanFormatError
+    from regrasp_casadi.plan import Plan
+
+    expected = verify(Plan.load(plan_file))
+    for given in (str(plan_file), plan_file):
+        report = verify(given)
+        assert report.ok == expected.ok and report.violations == expected.violations
+    assert expected.violations   # the hand-made plan's contacts are tip centres, off the object
+    with pytest.raises(TypeError, match=r"^plan: expected a Plan or a plan file path, got int$"):
+        verify(123)
+    with pytest.raises(TypeError, match=r"^plan: expected a Plan or a plan file path, got dict$"):
+        verify(Plan.load(plan_file).to_dict())
+    with pytest.raises(PlanFormatError, match=r"missing\.json"):
+        verify(tmp_path / "missing.json")
+
+
+def test_hand_from_urdf_names_its_argument(hand):
+    from regrasp_casadi.hand import Hand
+
+    with pytest.raises(TypeError, match=r"^path: expected a URDF file path, got int$"):
+        Hand.from_urdf(123)
+    with pytest.raises(TypeError, match=r"^path: expected a URDF file path, got NoneType$"):
+        Hand.from_urdf(None)
+    assert Hand.from_urdf(hand.urdf_path).fingers == hand.fingers   # a Path is a path
+    assert Hand.from_urdf(str(hand.urdf_path)).fingers == hand.fingers
 
 
 def test_planner_rejects_joints_off_the_contacts(box_problem):

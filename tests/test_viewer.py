@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -186,9 +187,14 @@ def test_desired_contacts_are_fixed_in_the_object_frame(plan, hand, obj):
         T = np.array(_unpack(node.transform)["matrix"], dtype=float).reshape(4, 4).T  # column-major
         np.testing.assert_allclose(T[:3, 3], plan.goal_contacts_object[r], atol=1e-7)
         np.testing.assert_allclose(T[:3, :3], np.eye(3), atol=1e-7)
-        geom = _unpack(node.object)["object"]["geometries"][0]
-        assert geom["type"] == "SphereGeometry" and geom["radius"] == pytest.approx(viewer.GOAL_RADIUS)
-        assert _unpack(node.object)["object"]["materials"][0]["color"] == viewer.GOAL_COLOR
+        # an outlined blue ring: dark outline, the ring, a white hole, drawn in that order
+        discs = [_unpack(node[f"disc{k}"].object)["object"] for k in range(3)]
+        radii = [d["geometries"][0]["radius"] for d in discs]
+        assert radii[1] == pytest.approx(viewer.GOAL_RADIUS) and radii[0] > radii[1] > radii[2]
+        assert [d["materials"][0]["color"] for d in discs] == [viewer.OUTLINE_COLOR, viewer.GOAL_COLOR,
+                                                               0xFFFFFF]
+        orders = [d["object"]["renderOrder"] for d in discs]
+        assert orders == sorted(orders) and orders[0] > 0
     # the markers are children of the animated object node, so they move with the object
     anim = _unpack(window.tree.animation)
     animated = {a["path"] for a in anim["animations"]}
@@ -217,12 +223,15 @@ def test_animation_tracks_match_keyframes(plan, hand, obj):
     for f in (f for f in frames if f.alpha == 1.0):
         key = next(k for k in lpos["keys"] if k["time"] == pytest.approx(f.time * fps, abs=1e-4))
         np.testing.assert_allclose(key["value"], f.T_palm_link["link_3.0_tip"][:3, 3], atol=1e-6)
-    # one label per step, visible exactly during its step
-    for i in range(len(plan.steps)):
+    # one label per step, visible while the replay moves into its step (step 0: only before it plays)
+    n = len(plan.steps)
+    for i in range(n):
         lab = anim[f"/Cameras/default/rotated/<object>/labels/step_{i}"]
-        keys = lab["tracks"][0]["keys"]
-        on = [k["time"] / fps for k in keys if k["value"]]
-        assert on == pytest.approx([i * 0.5])
+        keys = [(k["time"] / fps, k["value"]) for k in lab["tracks"][0]["keys"]]
+        on = [t for t, v in keys if v]
+        off = [t for t, v in keys if not v and t > 0]
+        assert on == pytest.approx([] if i == 0 else [(i - 1) * 0.5])
+        assert off == pytest.approx([i * 0.5] if 0 < i < n - 1 else [])   # the last label stays on
         text = _unpack(_node(window, f"/Cameras/default/rotated/<object>/labels/step_{i}").object)["object"]
         assert text["textures"][0]["text"] == viewer.step_label(plan, i)
         assert plan.steps[i].kind in text["textures"][0]["text"]
@@ -238,6 +247,7 @@ def test_write_html_is_one_small_self_contained_file(plan, hand, obj, tmp_path):
     # the animation is the last command (three.js only writes animated values when they change, so a
     # static command after it would win), and the static scene before it is the final step
     import base64
+    import json
     import re
 
     import umsgpack
@@ -249,9 +259,12 @@ def test_write_html_is_one_small_self_contained_file(plan, hand, obj, tmp_path):
                 and c["path"] == "/meshcat/regrasp/object"]
     T_obj = np.array(T_obj, dtype=float).reshape(4, 4).T
     np.testing.assert_allclose(T_obj, plan.steps[-1].T_palm_object, atol=1e-6)
-    visible = {c["path"].rsplit("_", 1)[1]: c["value"] for c in cmds
-               if c["type"] == "set_property" and "/labels/step_" in c["path"]}
-    assert visible == {str(i): i == len(plan.steps) - 1 for i in range(len(plan.steps))}
+    # the step labels and the legend are the HTML overlay, not text planes in the scene
+    assert not [c for c in cmds if "/labels/" in c["path"] or "/legend/" in c["path"]]
+    data = re.search(r'<script type="application/json" id="rg-data">(.*?)</script>', html).group(1)
+    data = json.loads(data)
+    assert data["labels"] == [viewer.step_label(plan, i) for i in range(len(plan.steps))]
+    assert data["times"] == pytest.approx([0.0, 0.8, 1.6])
 
 
 def test_import_viewer_does_not_import_meshcat():
@@ -314,3 +327,157 @@ def test_keyframes_of_a_real_plan(yourdfpy_fk):
         if step.kind == "gait" and f.step > 0:
             others = np.setdiff1d(np.arange(hand.n_joints), hand.finger_joints[step.finger])
             np.testing.assert_array_equal(f.q[others], plan.steps[f.step - 1].q[others])
+
+
+# --------------------------------------------------------------------------------------------------------
+# What the replay looks like: colours from the hand's metadata, markers over the scene, legend, meshes.
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _link_colors(window, hand) -> dict[str, set[int]]:
+    """link -> the colours of its shapes in the recorded scene."""
+    out = {}
+    for link in hand.link_names:
+        node = _node(window, f"/meshcat/regrasp/hand/{link}")
+        out[link] = {_unpack(child.object)["object"]["materials"][0]["color"]
+                     for child in node.values() if child.object is not None}
+    return out
+
+
+def test_finger_colours_come_from_hand_yaml(tmp_path, plan, obj):
+    """A colour changed in a copy of the model folder's hand.yaml is the colour of that finger's links in
+    the scene and in the legend; a finger without a colour gets the first default; tips are tinted."""
+    import shutil
+
+    import yaml
+
+    from regrasp_casadi.hand import Hand
+    from regrasp_casadi.hand_visuals import DEFAULT_FINGER_COLORS
+
+    folder = tmp_path / "allegro_copy"
+    shutil.copytree(REPO / "models" / "allegro_right", folder)
+    meta = yaml.safe_load((folder / "hand.yaml").read_text())
+    meta["viewer"]["colors"] = {"palm": "#444444", "middle": "#123456"}   # index, ring, thumb: defaults
+    (folder / "hand.yaml").write_text(yaml.safe_dump(meta))
+    hand = Hand.from_model(folder)
+    window, _ = _recorded_scene(plan, hand, obj)
+    colors = _link_colors(window, hand)
+    assert colors["palm_link"] == {0x444444}
+    for k in (4, 5, 6, 7):                       # the middle finger: joints 4-7, links link_4.0 .. link_7.0
+        assert colors[f"link_{k}.0"] == {0x123456}
+    # the tip: 0x12, 0x34, 0x56 mixed 55 % with white -> 0x94, 0xA4, 0xB3
+    assert colors["link_7.0_tip"] == {0x94A4B3}
+    assert colors["link_1.0"] == {DEFAULT_FINGER_COLORS[0]}   # index: first finger, first default
+    assert colors["link_13.0"] == {DEFAULT_FINGER_COLORS[3]}  # thumb: fourth finger
+    html = viewer.scene_html(plan, hand, obj)
+    assert "background:#123456" in html and "middle finger" in html
+
+
+def test_contact_markers_do_not_depth_test(plan, hand, obj):
+    """Every disc of the current and desired contact markers is drawn over the scene: its material does not
+    depth-test (nor write depth), is transparent (drawn after the opaque scene) and has a renderOrder
+    after the scene's; a current contact's dot is drawn after (over) a desired contact's ring."""
+    window, _ = _recorded_scene(plan, hand, obj)
+    orders = {}
+    for kind, base in (("current", "/meshcat/regrasp/contacts"),
+                       ("goal", "/meshcat/regrasp/object/goal_contacts")):
+        for finger in plan.fingers:
+            node = _node(window, f"{base}/{finger}")
+            discs = [_unpack(c.object)["object"] for c in node.values() if c.object is not None]
+            assert len(discs) >= 2
+            for d in discs:
+                mat = d["materials"][0]
+                assert mat["depthTest"] is False and mat["depthWrite"] is False and mat["transparent"] is True
+            orders.setdefault(kind, []).extend(d["object"]["renderOrder"] for d in discs)
+    assert min(orders["goal"]) > 0 and min(orders["current"]) > max(orders["goal"])
+    dot = _unpack(_node(window, f"/meshcat/regrasp/contacts/{plan.fingers[0]}/disc1").object)["object"]
+    assert dot["materials"][0]["color"] == viewer.CONTACT_COLOR
+    assert dot["geometries"][0]["radius"] == pytest.approx(viewer.CONTACT_RADIUS)
+
+
+def test_step_labels_name_kind_number_and_finger(plan):
+    assert [viewer.step_label(plan, i) for i in range(3)] == [
+        "initial grasp 0/2", "gait 1/2: index finger", "repose 2/2"]
+    assert viewer.finger_phrase("thumb") == "thumb" and viewer.finger_phrase("ring") == "ring finger"
+
+
+def test_legend_is_in_the_html(plan, hand, obj, tmp_path):
+    import html as html_lib
+
+    from regrasp_casadi.hand_visuals import hand_colors
+
+    html = viewer.write_html(plan, tmp_path / "r.html", hand=hand, obj=obj).read_text(encoding="utf-8")
+    legend = html.split('id="rg-legend"')[1].split('id="rg-hint"')[0]
+    texts = ["current contact", "desired contact", "index finger", "middle finger", "ring finger", "thumb",
+             "palm", f"object ({html_lib.escape(obj.name)})"]
+    positions = [legend.index(t) for t in texts]
+    assert positions == sorted(positions)               # in this order, top to bottom
+    for part, color in hand_colors(hand).items():
+        assert f"background:#{color:06x}" in legend, part
+    assert f"#{viewer.CONTACT_COLOR:06x}" in legend and f"#{viewer.GOAL_COLOR:06x}" in legend
+    assert "gait 1/2: index finger" in html             # the step labels ride in the overlay's data
+
+
+def _binary_stl_vertices(path: Path) -> np.ndarray:
+    """(3 f, 3) triangle corners of a binary STL file, read with numpy only (a reference for trimesh)."""
+    data = path.read_bytes()
+    n = int(np.frombuffer(data[80:84], dtype="<u4")[0])
+    rec = np.dtype([("normal", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+    return np.frombuffer(data[84:84 + 50 * n], dtype=rec)["v"].reshape(-1, 3).astype(float)
+
+
+@pytest.mark.reference_data
+def test_vendor_urdf_is_drawn_with_its_meshes(reference_dir, plan, hand, obj):
+    """With the vendor URDF (STL visual meshes), every link that has a visual mesh is drawn with it: the
+    scene's geometry under that link spans the STL file's bounds (read with numpy) and sits at the
+    <visual><origin> of the URDF (read with lxml)."""
+    from lxml import etree
+
+    from regrasp_casadi.hand import Hand
+
+    urdf = reference_dir / "allegro_right" / "allegro_hand_right.urdf"
+    vendor = Hand.from_urdf(urdf, fingers=hand.tip_links)
+    window, _ = _recorded_scene(plan, vendor, obj)
+    with_mesh = 0
+    for link in etree.parse(str(urdf)).getroot().findall("link"):
+        mesh = link.find("visual/geometry/mesh")
+        if mesh is None:
+            continue
+        with_mesh += 1
+        origin = link.find("visual/origin")
+        xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
+        rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
+        T_ref = make_T(Rotation.from_euler("xyz", rpy).as_matrix(), xyz)   # URDF: fixed-axis roll-pitch-yaw
+        ref = _binary_stl_vertices(urdf.parent / mesh.get("filename"))
+        (child,) = [c for c in _node(window, f"/meshcat/regrasp/hand/{link.get('name')}").values()
+                    if c.object is not None]
+        geom = _unpack(child.object)["object"]["geometries"][0]
+        assert geom["type"] == "BufferGeometry"
+        position = geom["data"]["attributes"]["position"]["array"].data
+        v = np.frombuffer(position, dtype=np.float32).reshape(-1, 3)
+        np.testing.assert_allclose(v.min(axis=0), ref.min(axis=0), atol=1e-6)
+        np.testing.assert_allclose(v.max(axis=0), ref.max(axis=0), atol=1e-6)
+        T = np.array(_unpack(child.transform)["matrix"], dtype=float).reshape(4, 4).T
+        np.testing.assert_allclose(T, T_ref, atol=1e-6)
+    assert with_mesh == len(vendor.link_names) == 21
+
+
+def test_bundled_boxes_become_rounded_boxes_of_the_same_size(hand):
+    """The bundled URDF's box visuals are drawn as rounded boxes: the same extents as the box (read from
+    the URDF with lxml), every vertex inside the box, its corners cut (no vertex near a box corner)."""
+    from lxml import etree
+
+    from regrasp_casadi.hand_visuals import hand_visuals
+
+    boxes = {link.get("name"): np.array(link.find("visual/geometry/box").get("size").split(), dtype=float)
+             for link in etree.parse(str(hand.urdf_path)).getroot().findall("link")
+             if link.find("visual/geometry/box") is not None}
+    shapes = {s.link: s for s in hand_visuals(hand) if s.link in boxes}
+    assert set(shapes) == set(boxes) and len(boxes) >= 16
+    for link, size in boxes.items():
+        v = shapes[link].params["vertices"]
+        np.testing.assert_allclose(v.max(axis=0) - v.min(axis=0), size, atol=1e-9)
+        corner = 0.5 * size
+        assert np.all(np.abs(v) <= corner + 1e-12)
+        assert np.min(np.linalg.norm(np.abs(v) - corner, axis=1)) > 0.1 * size.min()
