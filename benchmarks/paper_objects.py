@@ -7,8 +7,10 @@ does the same with the meshes of `../shared/reference/ycb/`:
 
 1. regrasp pairs per object from a fixed seed (`grasp_gen.generate_regrasp_pairs`), cached as problem
    files in `benchmarks/problems/<object>_<k>.yaml` so repeated runs reuse them;
-2. `plan_regrasp` for every pair and method (in `--workers` processes: IPOPT is not thread-safe), each plan
-   judged by `verify`; success = verified and final average point error ≤ 6 mm;
+2. `plan_regrasp` for every pair and method with `regrasp_casadi.batch.plan_many` (`--backend process`:
+   `--workers` local processes, the default; `--backend ray`: Ray actors, locally with `--workers` CPUs or
+   on the cluster at `--address`; `--backend serial`), each plan judged by `verify`; success = verified
+   and final average point error ≤ 6 mm; throughput = plans per minute per core over the planning stage;
 3. writes `<out-dir>/paper_objects.json` (every run + environment), `paper_objects.md` (tables beside the
    paper's figures) and two plots: `paper_objects_convergence.png` (normalised average point error per
    iteration, mean ± std over runs) and `paper_objects_error.png` (final error per object and method).
@@ -16,6 +18,8 @@ does the same with the meshes of `../shared/reference/ycb/`:
     python benchmarks/paper_objects.py --workers 2
     python benchmarks/paper_objects.py --objects banana sugar-box --pairs 2 --methods svd
     regrasp bench --workers 2          # the same through the CLI
+    regrasp bench --backend ray --workers 2              # a local 2-CPU Ray instance
+    regrasp bench --backend ray --address auto           # a running Ray cluster, all its CPUs
 
 Planning time is `plan.timing["total"]` (NLP builds included; NLPs are cached per worker process and
 object, so the first plan on an object pays the builds). Measures and records; asserts nothing.
@@ -168,32 +172,13 @@ def generate_pairs(name: str, n_pairs: int, problems_dir: str) -> tuple[str, flo
 
 
 # -------------------------------------------------------------------------------------- one run
-_MODELS: dict[str, tuple] = {}  # per worker process: object name -> (hand, obj), so NLP caches hit
-
-
-def run_one(name: str, k: int, path: str, method: str, max_iters: int) -> dict:
-    """Plan one pair with one method, verify it, return the record (never raises)."""
-    from regrasp_casadi.grasp import Grasp
-    from regrasp_casadi.planner import plan_regrasp
-    from regrasp_casadi.problem import RegraspProblem
-    from regrasp_casadi.verify import verify
-
-    rec: dict = {"object": name, "pair": k, "method": method, "problem": os.path.relpath(path, REPO)}
-    try:
-        problem = RegraspProblem.load(path)
-        if name not in _MODELS:
-            _MODELS[name] = (problem.hand, problem.obj)
-        hand, obj = _MODELS[name]
-        g0 = Grasp.from_joints(hand, obj, problem.grasp0.q, problem.grasp0.T_palm_object)
-        gg = problem.grasp_goal
-        goal = Grasp.from_contacts(hand, obj, gg.contacts_object, gg.T_palm_object, q=gg.q)
-        t0 = time.perf_counter()
-        plan = plan_regrasp(g0, goal, method=method, max_iters=max_iters)
-        wall = time.perf_counter() - t0
-        report = verify(plan, hand, obj)
-    except Exception as exc:  # a benchmark records failures, it does not stop on them
-        rec.update(status="exception", status_detail=f"{type(exc).__name__}: {exc}", verified=False,
-                   success=False)
+def record(result, name: str, k: int) -> dict:
+    """The benchmark record of one `plan_many` result (a `regrasp_casadi.batch.BatchResult`)."""
+    rec: dict = {"object": name, "pair": k, "method": result.method,
+                 "problem": os.path.relpath(result.path, REPO), "worker": result.worker}
+    plan = result.plan
+    if plan is None:  # a benchmark records failures, it does not stop on them
+        rec.update(status="exception", status_detail=result.error, verified=False, success=False)
         return rec
     final = plan.steps[-1] if plan.steps else None
     error = float(np.mean(final.contact_error)) if final is not None else float("nan")
@@ -201,8 +186,8 @@ def run_one(name: str, k: int, path: str, method: str, max_iters: int) -> dict:
         status=plan.status,
         status_detail=plan.status_detail,
         iterations=int(plan.iterations),
-        planning_time=float(plan.timing.get("total", wall)),
-        wall_time=wall,
+        planning_time=float(plan.timing.get("total", result.wall_time)),
+        wall_time=result.wall_time,
         timing={key: float(v) for key, v in plan.timing.items()},
         solves={str(key): int(v) for key, v in (plan.options.get("solves") or {}).items()},
         average_point_error=error,
@@ -210,13 +195,20 @@ def run_one(name: str, k: int, path: str, method: str, max_iters: int) -> dict:
         initial_error=float(plan.iteration_errors[0]) if len(plan.iteration_errors) else float("nan"),
         iteration_errors=[float(e) for e in plan.iteration_errors],
         steps=len(plan.steps),
-        verified=bool(report.ok),
-        violations=[str(getattr(v, "message", v)) for v in report.violations[:5]],
-        n_violations=len(report.violations),
-        min_clearance=float(report.metrics.get("min_clearance", float("nan"))),
-        success=bool(report.ok and error <= ZETA),
+        verified=bool(result.verified),
+        violations=list(result.violations[:5]),
+        n_violations=len(result.violations),
+        min_clearance=float(result.verify_metrics.get("min_clearance", float("nan"))),
+        success=bool(result.verified and error <= ZETA),
     )
     return rec
+
+
+def throughput(n_plans: int, wall_time: float, cores: int) -> dict:
+    """Plans per minute, and per minute per core, of `n_plans` plans that took `wall_time` s on `cores`."""
+    per_minute = 60.0 * n_plans / wall_time if wall_time > 0 else float("nan")
+    return {"plans": n_plans, "wall_time": wall_time, "cores": cores, "plans_per_minute": per_minute,
+            "plans_per_minute_per_core": per_minute / max(1, cores)}
 
 
 # ------------------------------------------------------------------------------------- summaries
@@ -263,7 +255,8 @@ def summarise(runs: list[dict]) -> dict:
 
 def markdown(summary: dict, env: dict) -> str:
     lines = [
-        f"Machine: {env['cpu']} ({env['cores']} cores, {env['workers']} worker process(es)); Python "
+        f"Machine: {env['cpu']} ({env['cores']} cores, {env['workers'] or 'all'} worker(s), "
+        f"{env.get('backend', 'process')} backend); Python "
         f"{env['python']}, CasADi {env['casadi']}, IPOPT {env['ipopt']} ({env['linear_solver']}); commit "
         f"`{env['git_commit'][:10]}`{' (dirty tree)' if env['git_dirty'] else ''}; {env['date']}.",
         "",
@@ -290,6 +283,12 @@ def markdown(summary: dict, env: dict) -> str:
             f"{_fmt(s['median_time'])} | {p['median_time']:g} | {_fmt(s['max_time'])} | "
             f"{_fmt(s['median_iterations'])} | {p['median_iterations']} | {_fmt(s['median_error'], 'mm')} | "
             f"{_fmt(s['max_error'], 'mm')} |")
+    tp = summary.get("throughput")
+    if tp:
+        lines += ["", f"Throughput: {tp['plans']} plans in {tp['wall_time']:.1f} s on {tp['cores']} core(s) "
+                  f"({env.get('backend', 'process')} backend): {_fmt(tp['plans_per_minute'])} plans/min, "
+                  f"{_fmt(tp['plans_per_minute_per_core'])} plans/min per core (load "
+                  f"{env['load_1min']:.1f} before, {env.get('load_1min_after', float('nan')):.1f} after)."]
     lines += ["", "Paper (Table I and §VI): SVD median 75 s, SD median 729 s over all objects; median "
               "iterations 44 (SVD), 29 (SD); sugar-box SVD median error 0.36 cm. Paper times are SNOPT on "
               "the authors' machine; ours include NLP builds."]
@@ -370,7 +369,7 @@ def _finite(x):
 
 
 # ------------------------------------------------------------------------------------------- main
-def main(argv: list[str] | None = None) -> int:
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--objects", nargs="+", default=list(OBJECTS), choices=list(OBJECTS), type=object_label,
@@ -378,44 +377,69 @@ def main(argv: list[str] | None = None) -> int:
                         f"({', '.join(OBJECTS.values())})")
     parser.add_argument("--pairs", type=int, default=5, help="regrasp pairs per object")
     parser.add_argument("--methods", nargs="+", default=["svd", "sd"], choices=["svd", "sd"], help="OPT2 objectives")
-    parser.add_argument("--workers", type=int, default=1, help="parallel processes")
+    parser.add_argument("--backend", default="process", choices=["process", "ray", "serial"],
+                        help="how the plans run (regrasp_casadi.batch.plan_many)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="worker processes / Ray CPUs (None: 1, or with --address the cluster's CPUs)")
+    parser.add_argument("--address", default=None,
+                        help="--backend ray: address of a running Ray cluster (None: start a local one)")
     parser.add_argument("--max-iters", type=int, default=50, help="planner iteration limit")
     parser.add_argument("--out-dir", type=pathlib.Path, default=HERE / "results", help="folder of the results")
     parser.add_argument("--problems-dir", type=pathlib.Path, default=HERE / "problems",
                         help="cache of generated pairs (problem files)")
     parser.add_argument("--no-plots", action="store_true", help="no convergence and error plots")
     args = parser.parse_args(argv)
-    if not YCB_DIR.is_dir():
-        print(f"YCB meshes not found: {YCB_DIR}", file=sys.stderr)
-        return 2
+    if args.address is not None and args.backend != "ray":
+        parser.error("--address needs --backend ray")
+    if args.workers is None and args.address is None:
+        args.workers = 1
+    return args
+
+
+def _generate_all(args: argparse.Namespace) -> tuple[dict[str, list[str]], dict[str, float]]:
+    """The problem files of every object (generated when missing), and the generation time per object."""
     from tqdm import tqdm
 
-    args.out_dir.mkdir(parents=True, exist_ok=True)
-    args.problems_dir.mkdir(parents=True, exist_ok=True)
     ctx = multiprocessing.get_context("fork") if sys.platform.startswith("linux") else None
-    env = environment(args.workers)
-    t_start = time.perf_counter()
-    runs: list[dict] = []
+    paths: dict[str, list[str]] = {}
     gen_times: dict[str, float] = {}
-    with ProcessPoolExecutor(max_workers=max(1, args.workers), mp_context=ctx) as pool:
+    with ProcessPoolExecutor(max_workers=max(1, args.workers or 1), mp_context=ctx) as pool:
         futs = [pool.submit(generate_pairs, n, args.pairs, str(args.problems_dir)) for n in args.objects]
-        paths: dict[str, list[str]] = {}
         for f in tqdm(as_completed(futs), total=len(futs), desc="pairs", unit="object"):
             name, secs, ps = f.result()
             paths[name], gen_times[name] = ps, secs
-        jobs = [(n, k, paths[n][k], m) for n in args.objects for k in range(args.pairs) for m in args.methods]
-        futs = [pool.submit(run_one, *job, args.max_iters) for job in jobs]
-        bar = tqdm(as_completed(futs), total=len(futs), desc="plans", unit="plan")
-        for f in bar:
-            rec = f.result()
-            runs.append(rec)
-            bar.set_postfix_str(f"{sum(r['success'] for r in runs)}/{len(runs)} ok")
-    order = {(n, k, m): i for i, (n, k, _, m) in enumerate(jobs)}
-    runs.sort(key=lambda r: order[(r["object"], r["pair"], r["method"])])
+    return paths, gen_times
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    if not YCB_DIR.is_dir():
+        print(f"YCB meshes not found: {YCB_DIR}", file=sys.stderr)
+        return 2
+    from regrasp_casadi.batch import plan_many
+
+    args.out_dir.mkdir(parents=True, exist_ok=True)
+    args.problems_dir.mkdir(parents=True, exist_ok=True)
+    env = environment(args.workers)
+    env.update(backend=args.backend, ray_address=args.address)
+    t_start = time.perf_counter()
+    paths, gen_times = _generate_all(args)
+    labels = [(n, k) for n in args.objects for k in range(args.pairs)]
+    runs: list[dict] = []
+    t_plans = time.perf_counter()
+    results = plan_many([paths[n][k] for n, k in labels], backend=args.backend, workers=args.workers,
+                        address=args.address, methods=args.methods, max_iters=args.max_iters)
+    plans_time = time.perf_counter() - t_plans
+    env["load_1min_after"] = os.getloadavg()[0]
+    for r in results:
+        runs.append(record(r, *labels[r.index // len(args.methods)]))
+    cores = args.workers or len({r.worker for r in results})
     summary = summarise(runs)
+    summary["throughput"] = throughput(len(results), plans_time, cores)
     result = {"environment": env, "settings": {"seed": SEED, "pairs": args.pairs, "methods": args.methods,
                                                "objects": args.objects, "max_iters": args.max_iters,
-                                               "success_error": ZETA},
+                                               "success_error": ZETA, "backend": args.backend,
+                                               "workers": args.workers, "address": args.address},
               "pair_generation_time": gen_times, "total_time": time.perf_counter() - t_start,
               "summary": summary, "paper": {"times": PAPER_TIMES, "overall": PAPER_OVERALL}, "runs": runs}
     json_path = args.out_dir / "paper_objects.json"

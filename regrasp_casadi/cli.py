@@ -5,7 +5,8 @@
     regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]]
     regrasp simulate plan.json [--gravity X Y Z] [--json report.json]
     regrasp grasps MESH_OR_PROBLEM [--hand MODEL] [--n N] [--seed S] [--out problems/x.yaml]
-    regrasp bench [ARGS ...]          (runs benchmarks/paper_objects.py)
+    regrasp bench [--backend process|ray|serial] [--address ADDR] [ARGS ...]
+                                      (runs benchmarks/paper_objects.py)
     regrasp demo [--out-dir DIR] [--method svd]
 
 Exit codes:
@@ -304,8 +305,15 @@ def cmd_grasps(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     if not BENCH_SCRIPT.is_file():
         raise _UserError(f"{BENCH_SCRIPT}: benchmark script not found (needs a source checkout)")
+    script_args = list(args.bench_args)
+    # --backend/--address reach the script with the other arguments; when they were parsed here (the
+    # parser used directly), they are passed on
+    for flag, value in (("--backend", getattr(args, "backend", None)),
+                        ("--address", getattr(args, "address", None))):
+        if value is not None and flag not in script_args:
+            script_args += [flag, value]
     argv0 = sys.argv
-    sys.argv = [str(BENCH_SCRIPT), *args.bench_args]
+    sys.argv = [str(BENCH_SCRIPT), *script_args]
     try:
         runpy.run_path(str(BENCH_SCRIPT), run_name="__main__")
     except SystemExit as e:
@@ -469,6 +477,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = add("bench", "run the paper-objects benchmark (benchmarks/paper_objects.py); every argument "
                       "after `bench` goes to the script (`regrasp bench -- --help` for its help)")
+    sp.add_argument("--backend", choices=("process", "ray", "serial"),
+                    help="how the plans run (regrasp_casadi.batch.plan_many): a local process pool "
+                         "(default), Ray actors (the 'ray' extra), or one after the other")
+    sp.add_argument("--address", metavar="ADDR",
+                    help="with --backend ray: a running Ray cluster (default: start a local one)")
     sp.add_argument("bench_args", nargs="*", metavar="ARGS", help="arguments passed to the benchmark script")
     sp.set_defaults(func=cmd_bench)
 
