@@ -9,11 +9,13 @@ planner is deterministic and resets its warm starts for every plan). A worker ne
 (an unreadable problem file, a crashed worker) is recorded in the job's `BatchResult.error`.
 
 Backends:
-    "process" (default): a `concurrent.futures.ProcessPoolExecutor` whose workers are started by the
-        "forkserver" method on Linux (a clean server process that has imported CasADi, the planner and the
-        verifier once; each worker is forked from it, so it starts in milliseconds and shares no solver
-        state or threads with the caller), "spawn" elsewhere. Plain "fork" is not used: the caller may
-        hold threads (tqdm, Ray, BLAS) and live IPOPT/CasADi objects, which are not fork-safe.
+    "process" (default): worker processes (one single-process `concurrent.futures.ProcessPoolExecutor`
+        each) started by the "forkserver" method on Linux (a clean, single-threaded server process that
+        has imported CasADi, the planner and the verifier once; each worker is forked from it, so it
+        starts in milliseconds and shares no solver state or threads with the caller), "spawn"
+        elsewhere. Plain "fork" is not used: the caller may hold threads (tqdm, Ray, BLAS) and live
+        IPOPT/CasADi objects, which are not fork-safe. As with any spawn/forkserver pool, a script that
+        calls `plan_many` must guard its top level with ``if __name__ == "__main__":``.
     "ray": one Ray actor per CPU (`ray.init(num_cpus=workers)` locally, or `ray.init(address=...)` for a
         running cluster; an already initialised Ray is used as it is). Ray is an optional extra:
         ``pip install 'regrasp-casadi[ray]'``. On a cluster, the package and the problem files (and the
@@ -22,13 +24,18 @@ Backends:
 
 NLP caching: each worker process keeps one NLP cache (the planner's), keyed by its hand and object. The
 worker takes its models from `problem.plan_models`' per-spec cache, so every problem with the same hand and
-object spec (two methods on one problem, several pairs on one mesh) reuses the worker's NLPs. Problem
+object spec (two methods on one problem, several pairs on one mesh) reuses the worker's NLPs. Jobs are
+handed to the workers (for both "process" and "ray") with that in mind: a free worker takes a job of an
+object it has already built the NLPs of, else one of an object no worker has started, so that each
+object's NLPs are built by as few workers as possible. Problem
 paths are the cheaper input (each worker reads the file itself); an in-memory `RegraspProblem` is sent as
 its hand and object specs and its grasps' arrays (a `Hand` does not pickle).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import logging
 import multiprocessing
 import os
@@ -36,8 +43,9 @@ import pathlib
 import socket
 import sys
 import time
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
 from typing import TYPE_CHECKING, Any, Literal
@@ -87,6 +95,9 @@ class BatchResult:
     """Every violation as one line: ``step k: check [who]: message``."""
     wall_time: float = 0.0
     """Time the worker spent on the job (reading the problem, planning, verifying), s."""
+    cpu_time: float = 0.0
+    """CPU time of the worker process over the job (`time.process_time`), s: less than `wall_time` when
+    other processes share the cores."""
     worker: str = ""
     """Where it ran: ``host:pid`` of the worker process."""
     error: str | None = None
@@ -112,7 +123,8 @@ class BatchResult:
             "iterations": int(plan.iterations) if plan is not None else None,
             "final_error": float(plan.final_error) if plan is not None and plan.steps else None,
             "verified": self.verified, "n_violations": len(self.violations),
-            "wall_time": self.wall_time, "worker": self.worker, "error": self.error,
+            "wall_time": self.wall_time, "cpu_time": self.cpu_time, "worker": self.worker,
+            "error": self.error,
         }
 
 
@@ -181,7 +193,7 @@ def _read_problem(job: _Job) -> _Job:
 
 def run_job(job: _Job) -> BatchResult:
     """Plan and verify one job in this process (never raises: an exception is recorded in the result)."""
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     worker = f"{socket.gethostname()}:{os.getpid()}"
     base = {"index": job.index, "problem": job.label, "path": job.path, "method": job.method,
             "worker": worker}
@@ -201,12 +213,13 @@ def run_job(job: _Job) -> BatchResult:
         report = verify(plan, hand, obj)
     except Exception as exc:  # noqa: BLE001 - a batch records failures, it does not stop on them
         _log.debug("job %d (%s) failed", job.index, job.label, exc_info=True)
-        return BatchResult(**base, error=_error_text(exc), wall_time=time.perf_counter() - t0)
+        return BatchResult(**base, error=_error_text(exc), wall_time=time.perf_counter() - t0,
+                           cpu_time=time.process_time() - cpu0)
     return BatchResult(
         **base, plan=plan, verified=bool(report.ok), verify_summary=report.summary(),
         verify_metrics=dict(report.metrics),
         violations=tuple(f"step {v.step}: {v.check} [{v.who}]: {v.message}" for v in report.violations),
-        wall_time=time.perf_counter() - t0)
+        wall_time=time.perf_counter() - t0, cpu_time=time.process_time() - cpu0)
 
 
 def _error_text(exc: BaseException) -> str:
@@ -262,23 +275,86 @@ def _failed(job: _Job, exc: BaseException) -> BatchResult:
     return BatchResult(job.index, job.label, job.path, job.method, error=_error_text(exc))
 
 
+def _affinity_key(job: _Job) -> str:
+    """A key of the job's hand and object: jobs with one key share their NLPs in a worker. For a problem
+    file, the file's `hand` and `object` entries (read without building anything; a relative mesh or
+    URDF path taken with the file's folder); a unique key when the file cannot be read."""
+    if job.hand_spec is not None:
+        what: Any = [job.hand_spec, job.object_spec]
+    else:
+        import yaml
+
+        try:
+            raw = yaml.safe_load(pathlib.Path(job.path).read_text(encoding="utf-8"))
+            what = [raw["hand"], raw["object"], str(pathlib.Path(job.path).resolve().parent)]
+        except Exception:  # noqa: BLE001 - the worker reports the problem; any worker may take it
+            return f"unreadable job {job.index}"
+    return hashlib.sha1(json.dumps(what, sort_keys=True, default=str).encode()).hexdigest()
+
+
+class _Scheduler:
+    """Which job a free worker takes next: one whose hand and object it has already built the NLPs of,
+    else one of an object no worker has seen, else one of the object with the most jobs left (it never
+    leaves a worker idle while jobs wait). The plans do not depend on it: only NLP builds are saved."""
+
+    def __init__(self, jobs: list[_Job], n_workers: int):
+        self._queues: dict[str, deque[_Job]] = {}
+        for job in jobs:
+            self._queues.setdefault(_affinity_key(job), deque()).append(job)
+        self._built: list[set[str]] = [set() for _ in range(n_workers)]
+
+    def next_for(self, worker: int) -> _Job | None:
+        waiting = [k for k, q in self._queues.items() if q]
+        if not waiting:
+            return None
+        seen = set().union(*self._built)
+        key = (next((k for k in waiting if k in self._built[worker]), None)
+               or next((k for k in waiting if k not in seen), None)
+               or max(waiting, key=lambda k: len(self._queues[k])))
+        self._built[worker].add(key)
+        return self._queues[key].popleft()
+
+    def restarted(self, worker: int) -> None:
+        """The worker was replaced by a new process: its NLPs are gone."""
+        self._built[worker].clear()
+
+
 def _run_serial(jobs: list[_Job]) -> Iterator[BatchResult]:
     for job in jobs:
         yield run_job(job)
 
 
 def _run_process(jobs: list[_Job], workers: int) -> Iterator[BatchResult]:
-    with ProcessPoolExecutor(max_workers=workers, mp_context=process_context()) as pool:
-        futures = {pool.submit(run_job, job): job for job in jobs}
-        try:
-            for fut in as_completed(futures):
+    """One single-process executor per worker, so that the scheduler decides where each job runs."""
+    ctx = process_context()
+    pools = [ProcessPoolExecutor(max_workers=1, mp_context=ctx) for _ in range(workers)]
+    scheduler = _Scheduler(jobs, workers)
+    running: dict[Future, tuple[int, _Job]] = {}
+
+    def feed(worker: int) -> None:
+        job = scheduler.next_for(worker)
+        if job is not None:
+            running[pools[worker].submit(run_job, job)] = (worker, job)
+
+    try:
+        for worker in range(workers):
+            feed(worker)
+        while running:
+            done, _ = wait(running, return_when=FIRST_COMPLETED)
+            for fut in done:
+                worker, job = running.pop(fut)
                 try:
-                    yield fut.result()
-                except Exception as exc:  # noqa: BLE001 - e.g. BrokenProcessPool: recorded per job
-                    yield _failed(futures[fut], exc)
-        finally:
-            for fut in futures:
-                fut.cancel()
+                    result = fut.result()
+                except Exception as exc:  # noqa: BLE001 - the worker died (BrokenProcessPool): recorded
+                    result = _failed(job, exc)
+                    pools[worker].shutdown(wait=False, cancel_futures=True)
+                    pools[worker] = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+                    scheduler.restarted(worker)
+                yield result
+                feed(worker)
+    finally:
+        for pool in pools:
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _import_ray():
@@ -291,6 +367,7 @@ def _import_ray():
 
 
 def _run_ray(jobs: list[_Job], workers: int | None, address: str | None) -> Iterator[BatchResult]:
+    """One Ray actor (one process, one NLP cache) per worker; the scheduler decides where each job runs."""
     ray = _import_ray()
     started = not ray.is_initialized()
     if started:
@@ -303,21 +380,28 @@ def _run_ray(jobs: list[_Job], workers: int | None, address: str | None) -> Iter
         n_actors = max(1, min(n_actors, len(jobs)))
         actor_class = ray.remote(num_cpus=1)(_RayWorker)
         actors = [actor_class.remote() for _ in range(n_actors)]
-        pending: dict[Any, tuple[_Job, Any]] = {}
-        queue = list(reversed(jobs))
-        free = list(actors)
-        while queue or pending:
-            while free and queue:  # keep every actor busy; an actor takes a new job when it is free
-                actor, job = free.pop(), queue.pop()
-                pending[actor.run.remote(job)] = (job, actor)
-            (ref,), _ = ray.wait(list(pending), num_returns=1)
-            job, actor = pending.pop(ref)
+        scheduler = _Scheduler(jobs, n_actors)
+        running: dict[Any, tuple[int, _Job]] = {}
+
+        def feed(worker: int) -> None:
+            job = scheduler.next_for(worker)
+            if job is not None:
+                running[actors[worker].run.remote(job)] = (worker, job)
+
+        for worker in range(n_actors):
+            feed(worker)
+        while running:
+            (ref,), _ = ray.wait(list(running), num_returns=1)
+            worker, job = running.pop(ref)
             try:
-                yield ray.get(ref)
-                free.append(actor)
-            except Exception as exc:  # noqa: BLE001 - a dead actor: record, replace it
-                yield _failed(job, exc)
-                free.append(actor_class.remote())
+                result = ray.get(ref)
+            except Exception as exc:  # noqa: BLE001 - a dead actor: recorded, replaced
+                result = _failed(job, exc)
+                ray.kill(actors[worker])
+                actors[worker] = actor_class.remote()
+                scheduler.restarted(worker)
+            yield result
+            feed(worker)
         for actor in actors:
             ray.kill(actor)
     finally:

@@ -187,3 +187,22 @@ def test_bench_script_backend_flags_and_throughput():
     tp = bench.throughput(8, 120.0, 2)  # 8 plans in 2 minutes on 2 cores
     assert tp["plans_per_minute"] == pytest.approx(4.0)
     assert tp["plans_per_minute_per_core"] == pytest.approx(2.0)
+
+
+def test_scheduler_keeps_an_object_on_the_worker_that_built_its_nlps():
+    """Jobs of objects A A A B B C: a free worker takes its own object's jobs, then an object nobody has
+    started, and only then another worker's object (the one with the most jobs left)."""
+    from regrasp_casadi.batch import _Job, _Scheduler
+
+    objects = "AAABBC"
+    jobs = [_Job(i, "svd", (), hand_spec={"model": "h"}, object_spec={"primitive": o})
+            for i, o in enumerate(objects)]
+    scheduler = _Scheduler(jobs, 2)
+    taken = [(w, objects[scheduler.next_for(w).index]) for w in (0, 1, 1, 1, 0, 0)]
+    assert taken == [(0, "A"), (1, "B"), (1, "B"), (1, "C"), (0, "A"), (0, "A")]
+    assert scheduler.next_for(0) is None and scheduler.next_for(1) is None
+    jobs = [_Job(i, "svd", (), hand_spec={"model": "h"}, object_spec={"primitive": o})
+            for i, o in enumerate("AAAAB")]
+    scheduler = _Scheduler(jobs, 3)
+    taken = ["AAAAB"[scheduler.next_for(w).index] for w in (0, 1, 2)]
+    assert taken == ["A", "B", "A"]  # the third worker, with no new object left, shares A
