@@ -410,6 +410,19 @@ def _add_simulate_parser(add) -> None:
     sp.set_defaults(func=cmd_simulate)
 
 
+def _add_bench_parser(add) -> None:
+    """The `bench` subcommand (its flags are documented here; `main` passes everything to the script)."""
+    sp = add("bench", "run the paper-objects benchmark (benchmarks/paper_objects.py); every argument "
+                      "after `bench` goes to the script (`regrasp bench -- --help` for its help)")
+    sp.add_argument("--backend", choices=("process", "ray", "serial"),
+                    help="how the plans run (regrasp_casadi.batch.plan_many): a local process pool "
+                         "(default), Ray actors (the 'ray' extra), or one after the other")
+    sp.add_argument("--address", metavar="ADDR",
+                    help="with --backend ray: a running Ray cluster (default: start a local one)")
+    sp.add_argument("bench_args", nargs="*", metavar="ARGS", help="arguments passed to the benchmark script")
+    sp.set_defaults(func=cmd_bench)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The `regrasp` argument parser (one subparser per command)."""
     from regrasp_casadi import __version__
@@ -475,15 +488,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="write a regrasp problem (a generated initial/desired grasp pair) to this file")
     sp.set_defaults(func=cmd_grasps)
 
-    sp = add("bench", "run the paper-objects benchmark (benchmarks/paper_objects.py); every argument "
-                      "after `bench` goes to the script (`regrasp bench -- --help` for its help)")
-    sp.add_argument("--backend", choices=("process", "ray", "serial"),
-                    help="how the plans run (regrasp_casadi.batch.plan_many): a local process pool "
-                         "(default), Ray actors (the 'ray' extra), or one after the other")
-    sp.add_argument("--address", metavar="ADDR",
-                    help="with --backend ray: a running Ray cluster (default: start a local one)")
-    sp.add_argument("bench_args", nargs="*", metavar="ARGS", help="arguments passed to the benchmark script")
-    sp.set_defaults(func=cmd_bench)
+    _add_bench_parser(add)
 
     sp = add("demo", "plan, verify and replay a regrasp on the built-in box problem")
     sp.add_argument("--out-dir", default=".", metavar="DIR",
