@@ -105,7 +105,9 @@ def test_nlps_are_reused_across_problems_of_one_object(monkeypatch):
 
     monkeypatch.setattr(ca, "nlpsol", counting)
     seen = []
-    plan_many(PROBLEMS, backend="serial", progress=False, on_result=lambda r: seen.append(len(built)))
+    results = plan_many(PROBLEMS, backend="serial", progress=False,
+                        on_result=lambda r: seen.append(len(built)))
+    assert [r.error for r in results] == [None, None]
     first, second = seen
     assert first > 0 and second == first, built
 
