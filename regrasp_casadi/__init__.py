@@ -31,6 +31,12 @@ _LAZY = {
     "InGraspNLP": "regrasp_casadi.in_grasp",
     "VerifyReport": "regrasp_casadi.verify",
     "generate_grasps": "regrasp_casadi.grasp_gen",
+    "generate_regrasp_pairs": "regrasp_casadi.grasp_gen",
+    "plan_many": "regrasp_casadi.batch",
+    "BatchResult": "regrasp_casadi.batch",
+    "Certificate": "regrasp_casadi.certificates",
+    "SimOptions": "regrasp_casadi.mujoco_model",
+    "SimReport": "regrasp_casadi.simulate",
     "RegraspError": "regrasp_casadi.errors",
     "ModelError": "regrasp_casadi.errors",
     "MeshError": "regrasp_casadi.errors",
@@ -56,14 +62,19 @@ if TYPE_CHECKING:  # pragma: no cover
         ProblemFileError,
         RegraspError,
     )
+    from regrasp_casadi.batch import BatchResult, plan_many  # noqa: F401
+    from regrasp_casadi.certificates import Certificate  # noqa: F401
     from regrasp_casadi.finger_gait import FingerGaitNLP  # noqa: F401
+    from regrasp_casadi.grasp_gen import generate_grasps, generate_regrasp_pairs  # noqa: F401
     from regrasp_casadi.grasp import Grasp  # noqa: F401
     from regrasp_casadi.hand import Hand  # noqa: F401
     from regrasp_casadi.in_grasp import InGraspNLP  # noqa: F401
+    from regrasp_casadi.mujoco_model import SimOptions  # noqa: F401
     from regrasp_casadi.objects import ObjectModel  # noqa: F401
     from regrasp_casadi.plan import Plan, PlanStep  # noqa: F401
     from regrasp_casadi.planner import PlannerOptions, plan_regrasp  # noqa: F401
     from regrasp_casadi.problem import RegraspProblem  # noqa: F401
+    from regrasp_casadi.simulate import SimReport  # noqa: F401
     from regrasp_casadi.verify import VerifyReport  # noqa: F401
 
 
