@@ -54,6 +54,8 @@ __all__ = ["__version__", "verify", *_LAZY]  # noqa: PLE0604
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi import verify  # noqa: F401
+    from regrasp_casadi.batch import BatchResult, plan_many  # noqa: F401
+    from regrasp_casadi.certificates import Certificate  # noqa: F401
     from regrasp_casadi.errors import (  # noqa: F401
         GraspError,
         MeshError,
@@ -62,11 +64,9 @@ if TYPE_CHECKING:  # pragma: no cover
         ProblemFileError,
         RegraspError,
     )
-    from regrasp_casadi.batch import BatchResult, plan_many  # noqa: F401
-    from regrasp_casadi.certificates import Certificate  # noqa: F401
     from regrasp_casadi.finger_gait import FingerGaitNLP  # noqa: F401
-    from regrasp_casadi.grasp_gen import generate_grasps, generate_regrasp_pairs  # noqa: F401
     from regrasp_casadi.grasp import Grasp  # noqa: F401
+    from regrasp_casadi.grasp_gen import generate_grasps, generate_regrasp_pairs  # noqa: F401
     from regrasp_casadi.hand import Hand  # noqa: F401
     from regrasp_casadi.in_grasp import InGraspNLP  # noqa: F401
     from regrasp_casadi.mujoco_model import SimOptions  # noqa: F401
