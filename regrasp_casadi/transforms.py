@@ -123,19 +123,25 @@ def exp_so3(w: ArrayLike) -> NDArray[np.float64]:
 
 
 def log_SO3(R: ArrayLike) -> NDArray[np.float64]:
-    """Rotation vector (3,) of a rotation (3, 3); inverse of `exp_so3` for angles in [0, π)."""
+    """Rotation vector (3,) of a rotation (3, 3), rad; inverse of `exp_so3` for angles in [0, π) (at π,
+    one of the two opposite vectors).
+
+    With w = vee(R − Rᵀ) = 2 sin θ a: θ = atan2(‖w‖ / 2, (tr R − 1) / 2) (accurate over [0, π], unlike
+    arccos of the trace near 0 and π) and, for θ ≤ π/2, a = w / ‖w‖. Above π/2, as w vanishes towards π
+    (a from w would err by ~1e-16 / sin θ), the axis comes from the symmetric part
+    (R + Rᵀ) / 2 = cos θ I + (1 − cos θ) a aᵀ (the column of a aᵀ with the largest diagonal entry) and
+    only its sign from w.
+    """
     R = np.asarray(R, dtype=float)
-    a = rotation_angle(np.eye(3), R)
-    if a < 1e-12:
-        return 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if np.pi - a < 1e-6:
-        # near π: axis from the symmetric part
-        M = (R + np.eye(3)) / 2.0
-        axis = M[:, np.argmax(np.diag(M))]
-        axis = axis / np.linalg.norm(axis)
-        return a * axis
-    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    return a * w / (2.0 * np.sin(a))
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])  # 2 sin θ · axis
+    sin_theta, cos_theta = 0.5 * float(np.linalg.norm(w)), 0.5 * (float(np.trace(R)) - 1.0)
+    theta = float(np.arctan2(sin_theta, cos_theta))
+    if cos_theta >= 0.0:
+        return 0.5 * w if sin_theta == 0.0 else (0.5 * theta / sin_theta) * w
+    aaT = (0.5 * (R + R.T) - cos_theta * np.eye(3)) / (1.0 - cos_theta)  # axis · axisᵀ
+    j = int(np.argmax(np.diag(aaT)))
+    axis = aaT[:, j] / np.linalg.norm(aaT[:, j])
+    return theta * (-axis if axis @ w < 0.0 else axis)
 
 
 def interpolate_pose(T_a: ArrayLike, T_b: ArrayLike, s: float) -> NDArray[np.float64]:
