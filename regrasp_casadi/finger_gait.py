@@ -129,15 +129,12 @@ class FingerGaitNLP:
     The objective is in cm² and the distance constraints in mm, for IPOPT's tolerances.
     """
 
-    _n_builds = 0
-
     def __init__(self, hand: Hand, obj: ObjectModel, finger: str, options: FingerGaitOptions | None = None):
         self.hand, self.obj, self.finger = hand, obj, finger
         self.options = options or FingerGaitOptions()
         o = self.options
         if finger not in hand.fingers:
             raise ValueError(f"unknown finger {finger!r}; the hand has {hand.fingers}")
-        FingerGaitNLP._n_builds += 1
         idx = np.asarray(hand.finger_joints[finger], dtype=int)
         self._idx = idx
         n = hand.n_joints
@@ -194,11 +191,6 @@ class FingerGaitNLP:
         self._k = k
         self.warm_start = _solver.WarmStart()
         """Multipliers of the last successful solve, for the next one."""
-
-    @classmethod
-    def build_count(cls) -> int:
-        """How many FingerGaitNLPs were built in this process (tests assert it does not grow in a plan)."""
-        return cls._n_builds
 
     def reset(self) -> None:
         """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""

@@ -230,13 +230,10 @@ class InGraspNLP:
     coarse pieces (`clearance_distance_function`: whole pieces, so a large move cannot leave them).
     """
 
-    _n_builds = 0
-
     def __init__(self, hand: Hand, obj: ObjectModel, method: Literal["svd", "sd"] = "svd",
                  options: InGraspOptions | None = None):
         if method not in ("svd", "sd"):
             raise ValueError(f"method must be 'svd' or 'sd', got {method!r}")
-        InGraspNLP._n_builds += 1
         self.hand, self.obj, self.method = hand, obj, method
         self.options = o = options or InGraspOptions()
         n, m = hand.n_joints, len(hand.fingers)
@@ -290,11 +287,6 @@ class InGraspNLP:
                                    ["x", "p"], ["p_object_spheres", "sd_l", "R_palm_object", "t_palm_object"])
         self.warm_start = _solver.WarmStart()
         """Multipliers of the last successful solve, for the next one."""
-
-    @classmethod
-    def build_count(cls) -> int:
-        """How many InGraspNLPs were built in this process."""
-        return cls._n_builds
 
     def reset(self) -> None:
         """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""

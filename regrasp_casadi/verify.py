@@ -117,7 +117,7 @@ class VerifyReport:
             f"  final contact error avg {_mm(m.get('final_avg_error'))} mm, "
             f"max {_mm(m.get('final_max_error'))} mm",
             f"  stability (metric): {m.get('unstable_gaits', 0)} gaits whose other fingers are not in force "
-            f"closure (μ = {(m.get('tolerances') or {}).get('mu', 0.5):g}); least margin ε "
+            f"closure (μ = {(m.get('tolerances') or {}).get('mu', constants.MU):g}); least margin ε "
             f"{m.get('min_holding_quality', float('nan')):.4f}",
         ]
         tol, opts = m.get("tolerances") or {}, m.get("plan_options") or {}
@@ -165,7 +165,7 @@ class Tolerances:
     contact_consistency_tol: float = 0.5e-3
     """Allowed gap between a stored contact and the exact closest point of its tip (and between stored
     and recomputed contact errors), m."""
-    mu: float = 0.5
+    mu: float = constants.MU
     """Friction coefficient of the stability metric (not a check)."""
 
 
@@ -450,7 +450,7 @@ def verify(
     zeta: float = DEFAULT_ZETA,
     max_slip: float = 1e-3,
     contact_consistency_tol: float = 0.5e-3,
-    mu: float = 0.5,
+    mu: float = constants.MU,
 ) -> VerifyReport:
     """Check a plan with exact geometry and verify's own tolerances; never raises for a bad plan, reports it.
 
