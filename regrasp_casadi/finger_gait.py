@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
-from regrasp_casadi.constants import BETA, ETA
+from regrasp_casadi.constants import ETA
 from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
 from regrasp_casadi.signed_distance import DEFAULT_TAU
 
@@ -33,43 +33,28 @@ _MM = 1e3  # distance-constraint scale: m → mm
 
 
 @dataclass(frozen=True)
-class FingerGaitOptions:
-    """Knobs of OPT1 (paper §III-A); SI units."""
+class FingerGaitOptions(_solver.NLPOptions):
+    """Knobs of OPT1 (paper §III-A), beyond the NLPs' common ones (β, τ, ...); SI units."""
 
     eta: float = ETA
     """η, bound on the fingertip displacement of one gait, m (paper: 1 cm)."""
-    beta: float = BETA
-    """β, clearance every other sphere of the moving finger keeps from the object, m (paper: 1 mm)."""
     surface_tol: float = 5e-5
     """Exact-contact tolerance: re-solve with a corrected offset until |SD_exact(tip) − r| ≤ this, m."""
     max_corrections: int = 4
-    """Maximum number of re-solves of the exact-contact correction."""
-    tau: float | None = None
-    """Temperature of the smooth signed distance (None: the object's default), m."""
-    clearance_planes: int = 16
-    """Planes per convex piece of the coarse distance used for the clearance constraints."""
-    print_level: int = 0
-    """IPOPT print level (0 = quiet)."""
+    """Re-solves of the exact-contact correction after the first solve."""
 
 
 @dataclass(frozen=True)
-class FingerGaitResult:
-    """The outcome of one finger gait."""
+class FingerGaitResult(_solver.SolveStats):
+    """The outcome of one finger gait; `success`: it satisfies OPT1's constraints with the exact
+    geometry."""
 
     q: NDArray[np.float64]
     """Joint angles after the gait, (n,) rad; only the finger's joints differ from the input."""
     p_object_tip: NDArray[np.float64]
     """Tip-sphere centre after the gait, (3,) object frame, m."""
-    status: str
-    """IPOPT return_status of the last solve."""
-    success: bool
-    """True when the result satisfies OPT1's constraints with the exact geometry."""
-    iterations: int
-    """IPOPT iterations over all solves of this gait."""
     solves: int
-    """Number of IPOPT solves (1 + exact-contact corrections)."""
-    solve_time: float
-    """Time spent inside IPOPT, s."""
+    """Number of solves (1 + exact-contact corrections)."""
     surface_error: float
     """|SD_exact(tip centre) − tip radius| at the result, m."""
     min_clearance: float
@@ -184,7 +169,7 @@ class FingerGaitNLP:
         # solver
         nlp = {"x": q_r, "p": p, "f": f, "g": g}
         self._solver = _solver.build_solver(f"finger_gait_{finger}", nlp,
-                                            _solver.SolverOptions(print_level=o.print_level))
+                                            o.solver_options())
         # numeric helper: tip and sphere points (object frame) and their smooth distances, no offsets
         self._points = ca.Function("gait_points", [q_r, p], [c_obj, s_obj, sd_tip, sd_l],
                                    ["q_r", "p"], ["p_object_tip", "p_object_spheres", "sd_tip", "sd_l"])
@@ -264,11 +249,10 @@ class FingerGaitNLP:
         step = float(np.linalg.norm(ev.p_object_tip - c0))  # the object does not move during a gait
         feasible = (surface_error <= max(o.surface_tol, 1e-4) and min_clear >= 0.0
                     and step <= o.eta + 1e-6)
-        status = corr.result.status if corr.result is not None else "not_solved"
         if not feasible:
             _log.debug("gait %s infeasible: status %s surface %.2e clearance %.2e step %.4f",
-                       self.finger, status, surface_error, min_clear, step)
-        return FingerGaitResult(q=q_new, p_object_tip=ev.p_object_tip, status=status,
+                       self.finger, corr.status, surface_error, min_clear, step)
+        return FingerGaitResult(q=q_new, p_object_tip=ev.p_object_tip, status=corr.status,
                                 success=bool(feasible), iterations=corr.iterations, solves=corr.solves,
                                 solve_time=corr.solve_time, surface_error=surface_error,
                                 min_clearance=min_clear)

@@ -22,7 +22,7 @@ from scipy.spatial import ConvexHull
 
 from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
-from regrasp_casadi.constants import BETA, K_ORIENT, K_POS
+from regrasp_casadi.constants import K_ORIENT, K_POS
 from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
 from regrasp_casadi.signed_distance import DEFAULT_TAU
 from regrasp_casadi.transforms import interpolate_pose, inv_T, kabsch, log_SO3, make_T
@@ -39,15 +39,14 @@ _MM = 1e3  # positions in the objective and distance constraints: m → mm
 
 
 @dataclass(frozen=True)
-class InGraspOptions:
-    """Knobs of OPT2 (paper §III-B); SI units."""
+class InGraspOptions(_solver.NLPOptions):
+    """Knobs of OPT2 (paper §III-B), beyond the NLPs' common ones (β, τ, ...); SI units. `max_corrections`:
+    re-solves with exact-distance offsets when a sphere's exact clearance is below β/2."""
 
     k_pos: float = K_POS
     """k1, weight of the relaxed-rigidity position term E_pos (paper: 1000)."""
     k_orient: float = K_ORIENT
     """k2, weight of the relaxed-rigidity orientation term E_or (paper: 10)."""
-    beta: float = BETA
-    """β, clearance of every non-tip sphere of the hand from the object, m (paper: 1 mm)."""
     max_translation: float = 0.03
     """Trust region: largest object translation per reposing, per axis, m."""
     max_rotation: float = 0.3
@@ -57,34 +56,19 @@ class InGraspOptions:
     max(0, SD); a margin keeps pulling goals that are inside the convex hull but not reachable)."""
     tau_hull: float = 0.002
     """Temperature of the smooth distance to the workspace hulls and of the smooth max(0, ·), m."""
-    tau: float | None = None
-    """Temperature of the object's smooth signed distance (None: the object's default), m."""
-    clearance_planes: int = 16
-    """Planes per convex piece of the coarse distance used for the clearance constraints."""
     max_slip: float = 5e-4
     """A result whose tip centres moved more than this relative to the object is rejected, m."""
-    max_corrections: int = 2
-    """Re-solves with exact-distance offsets when a sphere's exact clearance is below β/2."""
-    print_level: int = 0
-    """IPOPT print level."""
 
 
 @dataclass(frozen=True)
-class InGraspResult:
-    """The outcome of one in-grasp move."""
+class InGraspResult(_solver.SolveStats):
+    """The outcome of one in-grasp move; `success`: it is valid with the exact geometry (clearance ≥ 0,
+    slip ≤ `max_slip`, tips on the surface)."""
 
     q: NDArray[np.float64]
     """Joint angles after the move, (n,) rad."""
     T_palm_object: NDArray[np.float64]
     """Object pose after the move, (4, 4)."""
-    status: str
-    """IPOPT return_status of the last solve."""
-    success: bool
-    """True when the result is valid with exact geometry: clearance ≥ 0 and slip ≤ `max_slip`."""
-    iterations: int
-    """IPOPT iterations over all solves."""
-    solve_time: float
-    """Time inside IPOPT, s."""
     max_slip: float
     """Largest displacement of a tip centre relative to the object, m."""
     min_clearance: float
@@ -282,7 +266,7 @@ class InGraspNLP:
         self._radii_all = radii_all
         # solver
         self._solver = _solver.build_solver(f"in_grasp_{method}", {"x": x, "p": p, "f": f, "g": g},
-                                            _solver.SolverOptions(print_level=o.print_level))
+                                            o.solver_options())
         self._points = ca.Function("in_grasp_points", [x, p], [s_obj, sd_l, R, t],
                                    ["x", "p"], ["p_object_spheres", "sd_l", "R_palm_object", "t_palm_object"])
         self.warm_start = _solver.WarmStart()
@@ -388,7 +372,6 @@ class InGraspNLP:
         # as Search_Direction_Becomes_Too_Small is still a valid reposing)
         ok = bool(np.all(np.isfinite(x)) and min_clear >= 0.0 and max_slip <= o.max_slip
                   and surface_error <= 1e-4)
-        status = corr.result.status if corr.result is not None else "not_solved"
-        return InGraspResult(q=q_new, T_palm_object=T_new, status=status, success=ok,
+        return InGraspResult(q=q_new, T_palm_object=T_new, status=corr.status, success=ok,
                              iterations=corr.iterations, solve_time=corr.solve_time, max_slip=max_slip,
                              min_clearance=min_clear, surface_error=surface_error)

@@ -24,10 +24,14 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from regrasp_casadi.constants import BETA
+
 __all__ = [
     "BACKEND",
     "SUCCESS_STATUSES",
     "SolverOptions",
+    "NLPOptions",
+    "SolveStats",
     "backend_options",
     "build_solver",
     "Bounds",
@@ -75,6 +79,28 @@ class SolverOptions:
     """Relaxation of the variable and constraint bounds (0: bounds hold exactly)."""
     linear_solver: str | None = "mumps"
     """Sparse linear solver of the Newton steps."""
+
+
+@dataclass(frozen=True)
+class NLPOptions:
+    """The options the planner's NLPs (OPT1, OPT2) have in common: the clearance β, the smooth distance
+    model that stands in for the mesh, the exact-offset correction (`correct_offsets`) and the solver's
+    verbosity; SI units. Each NLP's options extend these."""
+
+    beta: float = BETA
+    """β, clearance the hand's non-contact spheres keep from the object, m (paper: 1 mm)."""
+    tau: float | None = None
+    """Temperature of the object's smooth signed distance (None: the object's default), m."""
+    clearance_planes: int = 16
+    """Planes per convex piece of the coarse distance used for the clearance constraints."""
+    max_corrections: int = 2
+    """Re-solves with exact-distance offsets after the first solve."""
+    print_level: int = 0
+    """Solver print level (0 = quiet)."""
+
+    def solver_options(self) -> SolverOptions:
+        """The `SolverOptions` of the NLP (the defaults, with this print level)."""
+        return SolverOptions(print_level=self.print_level)
 
 
 def backend_options(options: SolverOptions) -> dict:
@@ -132,6 +158,22 @@ class Bounds:
 
 
 # ------------------------------------------------------------------------------------ solve, success
+@dataclass(frozen=True)
+class SolveStats:
+    """What every NLP result reports about its solves (the NLPs' `*Result`s extend it)."""
+
+    status: str
+    """The backend's return_status of the last solve ("not_solved" when none was made)."""
+    success: bool
+    """True when the result satisfies the NLP's constraints with the exact geometry (whatever the
+    backend's status)."""
+    iterations: int
+    """Backend iterations over all solves."""
+    solve_time: float
+    """Wall time inside the solves, s."""
+
+
+
 @dataclass(frozen=True)
 class SolveResult:
     """The outcome of one NLP solve."""
@@ -321,6 +363,11 @@ class Correction(Generic[Evaluation]):
     """Backend iterations over all solves."""
     solve_time: float
     """Wall time inside the solves, s."""
+
+    @property
+    def status(self) -> str:
+        """The backend's return_status of the last solve, or "not_solved" when none was made."""
+        return self.result.status if self.result is not None else "not_solved"
 
 
 def clipped_if_finite(bounds: Bounds) -> Callable[[SolveResult], NDArray[np.float64] | None]:
