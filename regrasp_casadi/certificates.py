@@ -20,6 +20,7 @@ smooth models. Pure numpy/scipy (HiGHS) and, when installed, Clarabel (exact sec
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -27,6 +28,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.constants import MU
 from regrasp_casadi.stability import (
     FRICTION_EDGES,
     contact_mu,
@@ -40,8 +42,8 @@ from regrasp_casadi.stability import (
 
 __all__ = [
     "Certificate", "GRAVITY", "MAX_NORMAL_FORCE", "DENSITY", "FORCE_CLOSURE_TOL", "YCB_MASSES",
-    "object_mass", "force_closure_lp_margin", "force_closure_certificate", "gravity_certificate",
-    "force_violation", "certify_step", "step_certificates",
+    "object_mass", "force_closure_lp_margin", "force_closure_certificate", "GravityHold",
+    "gravity_certificate", "certify_step", "step_certificates",
 ]
 
 GRAVITY = 9.81
@@ -119,7 +121,7 @@ def object_mass(mesh: Any, mass: float | None = None, density: float = DENSITY) 
 def force_closure_lp_margin(
     contacts: NDArray[np.float64],
     normals: NDArray[np.float64],
-    mu: float | NDArray[np.float64] = 0.5,
+    mu: float | NDArray[np.float64] = MU,
     center: NDArray[np.float64] | None = None,
     length: float | None = None,
     n_edges: int = FRICTION_EDGES,
@@ -151,7 +153,7 @@ def force_closure_lp_margin(
 def force_closure_certificate(
     contacts: NDArray[np.float64],
     normals: NDArray[np.float64],
-    mu: float | NDArray[np.float64] = 0.5,
+    mu: float | NDArray[np.float64] = MU,
     center: NDArray[np.float64] | None = None,
     length: float | None = None,
     sliding: NDArray[np.bool_] | None = None,
@@ -202,9 +204,70 @@ def _force_basis(normals, mu_i) -> tuple[NDArray[np.float64], list[int]]:
     return B, a_col
 
 
-def _socp_hold(E, B, a_col, mu_i, wrench, f_max, scale_free: bool):
+@dataclass(frozen=True, eq=False)
+class GravityHold:
+    """A gravity hold to certify: k point contacts with Coulomb friction (μ_i = 0 where sliding) and a
+    bound on each normal force, holding the object's weight. The arrays are stored as float (normals
+    made unit, contacts and normals (k, 3)).
+
+        >>> hold = GravityHold(contacts, normals, weight=mass * g_object, center=com, mu=0.5)
+        >>> cert = gravity_certificate(hold)
+        >>> hold.violation(cert.forces)          # ≈ 0: the forces are a checkable certificate
+    """
+
+    contacts: NDArray[np.float64]
+    """(k, 3) contact points, object frame, m."""
+    normals: NDArray[np.float64]
+    """(k, 3) outward unit surface normals, object frame."""
+    weight: NDArray[np.float64]
+    """(3,) the object's weight m·g, object frame, N (non-zero)."""
+    center: NDArray[np.float64]
+    """(3,) the object's centre of mass, object frame, m."""
+    mu: float | NDArray[np.float64] = MU
+    """Friction coefficient, scalar or (k,)."""
+    max_normal_force: float = MAX_NORMAL_FORCE
+    """Bound on each normal force, N."""
+    sliding: NDArray[np.bool_] | None = None
+    """(k,) bool, contacts that slide (frictionless)."""
+
+    def __post_init__(self) -> None:
+        weight = np.asarray(self.weight, float).reshape(3)
+        if not np.linalg.norm(weight) > 0:
+            raise ValueError(f"weight must be a non-zero force (N), got {weight}")
+        n = np.asarray(self.normals, float).reshape(-1, 3)
+        object.__setattr__(self, "contacts", np.asarray(self.contacts, float).reshape(-1, 3))
+        object.__setattr__(self, "normals", n / np.linalg.norm(n, axis=1, keepdims=True))
+        object.__setattr__(self, "weight", weight)
+        object.__setattr__(self, "center", np.asarray(self.center, float).reshape(3))
+
+    @property
+    def mu_i(self) -> NDArray[np.float64]:
+        """(k,) friction coefficient of each contact (0 where sliding)."""
+        return contact_mu(self.mu, len(self.contacts), self.sliding)
+
+    @property
+    def wrench(self) -> NDArray[np.float64]:
+        """(6,) the wrench the contacts must balance: the weight, no torque about `center`."""
+        return np.concatenate([self.weight, np.zeros(3)])
+
+    def violation(self, forces: NDArray[np.float64]) -> float:
+        """Largest violation by `forces` (k, 3), N, of this hold: force and torque balance (N, N·m),
+        negative or excessive normal force (N) and friction-cone excess (N). Independent of the solver:
+        checks a stored certificate."""
+        c, n, f = self.contacts, self.normals, np.asarray(forces, float).reshape(-1, 3)
+        a = -np.sum(f * n, axis=1)
+        tangential = np.linalg.norm(f + a[:, None] * n, axis=1)
+        return float(max(
+            np.max(np.abs(f.sum(axis=0) + self.weight)),
+            np.max(np.abs(np.cross(c - self.center, f).sum(axis=0))),
+            np.max(-a), np.max(a - self.max_normal_force), np.max(tangential - self.mu_i * a),
+        ))
+
+
+def _socp_hold(hold: GravityHold, E, B, a_col, scale_free: bool):
     """Clarabel: forces x (local variables) with E B x + s·wrench = 0 (scale_free: maximise s ≥ 0) or
     E B x = −wrench (minimise ‖x‖²), 0 ≤ a_i ≤ f_max, (μ_i a_i, u_i, v_i) ∈ SOC₃. -> (x, s) or None."""
+    mu_i, wrench, f_max = hold.mu_i, hold.wrench, float(hold.max_normal_force)
     import clarabel
     from scipy import sparse
 
@@ -249,10 +312,12 @@ def _socp_hold(E, B, a_col, mu_i, wrench, f_max, scale_free: bool):
     return (x[:-1], float(x[-1])) if scale_free else (x, 1.0)
 
 
-def _lp_hold(E, normals, contacts, mu_i, wrench, f_max, n_edges, center, length, scale_free: bool):
+def _lp_hold(hold: GravityHold, E, length, n_edges, scale_free: bool):
     """HiGHS fallback with inscribed linearised cones: forces Σ_j β_ij e_ij (β ≥ 0, e_ij the edges of
     unit normal force), Σ_j β_ij ≤ f_max; maximise s (scale_free) or minimise the largest normal force
     for the weight itself. -> (stacked forces (3k,), s) or None."""
+    normals, contacts, mu_i = hold.normals, hold.contacts, hold.mu_i
+    center, wrench, f_max = hold.center, hold.wrench, float(hold.max_normal_force)
     from scipy.optimize import linprog
 
     edges, owner = [], []
@@ -282,41 +347,21 @@ def _lp_hold(E, normals, contacts, mu_i, wrench, f_max, n_edges, center, length,
     return F @ res.x[:-1], (float(res.x[-1]) + 0.0 if scale_free else 1.0)
 
 
-def gravity_certificate(
-    contacts: NDArray[np.float64],
-    normals: NDArray[np.float64],
-    weight: NDArray[np.float64],
-    center: NDArray[np.float64],
-    mu: float | NDArray[np.float64] = 0.5,
-    max_normal_force: float = MAX_NORMAL_FORCE,
-    sliding: NDArray[np.bool_] | None = None,
-    solver: Literal["auto", "socp", "lp"] = "auto",
-    n_edges: int = FRICTION_EDGES,
-) -> Certificate:
-    """Gravity-hold certificate: can k contacts hold the weight?
+def gravity_certificate(hold: GravityHold, solver: Literal["auto", "socp", "lp"] = "auto",
+                        n_edges: int = FRICTION_EDGES) -> Certificate:
+    """Gravity-hold certificate: can the contacts of `hold` hold its weight?
 
     Finds contact forces f_i (on the object) with normal force a_i = −f_i·n_i ∈ [0, max_normal_force],
-    tangential part ‖f_i + a_i n_i‖ ≤ μ_i a_i (μ_i = 0 where `sliding`), Σ f_i + weight = 0 and
-    Σ (c_i − center) × f_i = 0. margin = the largest s for which s·weight can be held (held ⇔ s ≥ 1);
-    forces = the least-norm forces (min Σ‖f_i‖²) for the weight itself.
+    tangential part ‖f_i + a_i n_i‖ ≤ μ_i a_i, Σ f_i + weight = 0 and Σ (c_i − center) × f_i = 0.
+    margin = the largest s for which s·weight can be held (held ⇔ s ≥ 1); forces = the least-norm
+    forces (min Σ‖f_i‖²) for the weight itself, (k, 3), N, object frame.
 
     Args:
-        contacts: (k, 3) contact points, object frame, m.
-        normals: (k, 3) outward unit surface normals, object frame.
-        weight: (3,) the object's weight m·g, object frame, N.
-        center: (3,) the object's centre of mass, object frame, m.
-        mu: friction coefficient, scalar or (k,).
-        max_normal_force: bound on each normal force, N.
-        sliding: (k,) bool, contacts that slide (frictionless).
+        hold: the contacts, friction, weight and force bound.
         solver: "socp" (Clarabel, exact cones), "lp" (HiGHS, `n_edges`-edge inscribed cones: conservative;
             its forces minimise the largest normal force instead), "auto" (socp when clarabel imports).
     """
-    c = np.asarray(contacts, float).reshape(-1, 3)
-    n = np.asarray(normals, float).reshape(-1, 3)
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    weight = np.asarray(weight, float).reshape(3)
-    if not np.linalg.norm(weight) > 0:
-        raise ValueError(f"weight must be a non-zero force (N), got {weight}")
+    c = hold.contacts
     if len(c) == 0:
         return Certificate("gravity", False, 0.0, None, "no holding contacts")
     if solver == "auto":
@@ -326,58 +371,28 @@ def gravity_certificate(
             solver = "socp"
         except ImportError:
             solver = "lp"
-    mu_i = contact_mu(mu, len(c), sliding)
-    center, length = torque_scale(c, center, None)
-    E = _equilibrium_rows(c, center, length)
-    wrench = np.concatenate([weight, np.zeros(3)])
-    f_max = float(max_normal_force)
+    _, length = torque_scale(c, hold.center, None)
+    E = _equilibrium_rows(c, hold.center, length)
     if solver == "socp":
-        B, a_col = _force_basis(n, mu_i)
-        best = _socp_hold(E, B, a_col, mu_i, wrench, f_max, scale_free=True)
-        hold = _socp_hold(E, B, a_col, mu_i, wrench, f_max, scale_free=False) if best and best[1] >= 1 \
-            else None
-        stacked = None if hold is None else B @ hold[0]
+        B, a_col = _force_basis(hold.normals, hold.mu_i)
+
+        def program(scale_free: bool):  # -> (stacked forces (3k,), s) or None
+            res = _socp_hold(hold, E, B, a_col, scale_free)
+            return None if res is None else (B @ res[0], res[1])
     elif solver == "lp":
-        best = _lp_hold(E, n, c, mu_i, wrench, f_max, n_edges, center, length, scale_free=True)
-        hold = _lp_hold(E, n, c, mu_i, wrench, f_max, n_edges, center, length, scale_free=False) \
-            if best and best[1] >= 1 else None
-        stacked = None if hold is None else hold[0]
+        program = functools.partial(_lp_hold, hold, E, length, n_edges)
     else:
         raise ValueError(f"solver: expected 'auto', 'socp' or 'lp', got {solver!r}")
+    best = program(scale_free=True)
+    held = program(scale_free=False) if best and best[1] >= 1 else None
     s = float("nan") if best is None else best[1]
-    forces = None if stacked is None else stacked.reshape(-1, 3)
+    forces = None if held is None else held[0].reshape(-1, 3)
     ok = forces is not None
-    w = float(np.linalg.norm(weight))
+    w = float(np.linalg.norm(hold.weight))
     detail = f"{'holds' if ok else 'cannot hold'} {w:.3g} N with {len(c)} contacts ({solver}): scale {s:.3g}"
     if ok:
-        detail += f", largest normal force {float(np.max(-np.sum(forces * n, axis=1))):.3g} N"
+        detail += f", largest normal force {float(np.max(-np.sum(forces * hold.normals, axis=1))):.3g} N"
     return Certificate("gravity", ok, s, forces, detail)
-
-
-def force_violation(
-    contacts: NDArray[np.float64],
-    normals: NDArray[np.float64],
-    forces: NDArray[np.float64],
-    weight: NDArray[np.float64],
-    center: NDArray[np.float64],
-    mu: float | NDArray[np.float64] = 0.5,
-    max_normal_force: float = MAX_NORMAL_FORCE,
-    sliding: NDArray[np.bool_] | None = None,
-) -> float:
-    """Largest violation by `forces` (k, 3), N, of a gravity hold (see `gravity_certificate`): force and
-    torque balance (N, N·m), negative or excessive normal force (N) and friction-cone excess (N).
-    Independent of the solver: checks a stored certificate."""
-    c, f = np.asarray(contacts, float).reshape(-1, 3), np.asarray(forces, float).reshape(-1, 3)
-    n = np.asarray(normals, float).reshape(-1, 3)
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    mu_i = contact_mu(mu, len(c), sliding)
-    a = -np.sum(f * n, axis=1)
-    tangential = np.linalg.norm(f + a[:, None] * n, axis=1)
-    return float(max(
-        np.max(np.abs(f.sum(axis=0) + np.asarray(weight, float))),
-        np.max(np.abs(np.cross(c - np.asarray(center, float), f).sum(axis=0))),
-        np.max(-a), np.max(a - max_normal_force), np.max(tangential - mu_i * a),
-    ))
 
 
 # ------------------------------------------------------------------------------------ plan steps
@@ -386,7 +401,7 @@ def certify_step(
     normals_object: NDArray[np.float64],
     holding_mask: NDArray[np.bool_],
     kind: Kind = "force_closure",
-    mu: float | NDArray[np.float64] = 0.5,
+    mu: float | NDArray[np.float64] = MU,
     mass: float | None = None,
     gravity_object: NDArray[np.float64] | None = None,
     *,
@@ -419,20 +434,21 @@ def certify_step(
     """
     c = np.asarray(contacts_object, float).reshape(-1, 3)
     n = np.asarray(normals_object, float).reshape(-1, 3)
-    hold = np.broadcast_to(np.asarray(holding_mask, bool), (len(c),))
-    mu_i = contact_mu(mu, len(c), sliding)[hold]
+    holding = np.broadcast_to(np.asarray(holding_mask, bool), (len(c),))
+    mu_i = contact_mu(mu, len(c), sliding)[holding]
     if kind == "force_closure":
-        return force_closure_certificate(c[hold], n[hold], mu_i, center, length)
+        return force_closure_certificate(c[holding], n[holding], mu_i, center, length)
     if kind != "gravity":
         raise ValueError(f"kind: expected 'force_closure' or 'gravity', got {kind!r}")
     if mass is None or gravity_object is None or center is None:
         raise ValueError("a gravity certificate needs mass (kg), gravity_object (m/s²) and center (COM)")
     weight = float(mass) * np.asarray(gravity_object, float).reshape(3)
-    cert = gravity_certificate(c[hold], n[hold], weight, center, mu_i, max_normal_force, solver=solver)
+    cert = gravity_certificate(GravityHold(c[holding], n[holding], weight, center, mu_i, max_normal_force),
+                               solver)
     if cert.forces is None:
         return cert
     forces = np.zeros((len(c), 3))
-    forces[hold] = cert.forces
+    forces[holding] = cert.forces
     return Certificate(cert.kind, cert.ok, cert.margin, forces, cert.detail)
 
 
@@ -440,7 +456,7 @@ def step_certificates(
     plan: Any,
     obj: Any | None,
     kind: Kind = "force_closure",
-    mu: float = 0.5,
+    mu: float = MU,
     *,
     hand: Any = None,
     mass: float | None = None,

@@ -15,10 +15,10 @@ import twofinger as tf
 from regrasp_casadi.certificates import (
     GRAVITY,
     Certificate,
+    GravityHold,
     certify_step,
     force_closure_certificate,
     force_closure_lp_margin,
-    force_violation,
     gravity_certificate,
     object_mass,
     step_certificates,
@@ -106,8 +106,9 @@ def test_antipodal_pinch_holds_a_tangential_weight_by_the_closed_form(theta, f_m
     # √(P² sin²θ + (m g/2)²) ≤ μ P cos θ  ⇒  largest scale s = 2 F √(μ² − tan²θ) / (m g) (0 if tan θ ≥ μ)
     mass, mu = 2.0, 0.5
     c, n = _antipodal(theta)
-    cert = gravity_certificate(c, n, np.array([0.0, -mass * GRAVITY, 0.0]), np.zeros(3), mu, f_max,
-                               solver="socp")
+    hold = GravityHold(c, n, weight=np.array([0.0, -mass * GRAVITY, 0.0]), center=np.zeros(3), mu=mu,
+                       max_normal_force=f_max)
+    cert = gravity_certificate(hold, solver="socp")
     s = 2 * f_max * np.sqrt(max(mu**2 - np.tan(theta) ** 2, 0.0)) / (mass * GRAVITY)
     assert cert.margin == pytest.approx(s, abs=1e-6)
     assert cert.ok == (s >= 1.0)
@@ -120,7 +121,8 @@ def test_antipodal_pinch_holds_a_tangential_weight_by_the_closed_form(theta, f_m
 def test_antipodal_least_norm_forces_are_the_closed_form():
     mass, mu = 2.0, 0.5
     c, n = _antipodal(0.0)
-    cert = gravity_certificate(c, n, np.array([0.0, -mass * GRAVITY, 0.0]), np.zeros(3), mu, 25.0)
+    cert = gravity_certificate(GravityHold(c, n, np.array([0.0, -mass * GRAVITY, 0.0]), np.zeros(3), mu,
+                                           25.0))
     a = mass * GRAVITY / (2 * mu)  # 19.62 N: the least squeeze that carries m g / 2 by friction
     np.testing.assert_allclose(cert.forces, [[-a, mass * GRAVITY / 2, 0.0], [a, mass * GRAVITY / 2, 0.0]],
                                atol=1e-5)
@@ -129,13 +131,14 @@ def test_antipodal_least_norm_forces_are_the_closed_form():
 def test_three_contacts_under_the_object_carry_a_third_each():
     mass = 0.3
     c, n = _triangle_on_bottom(h=0.02)
-    cert = gravity_certificate(c, n, np.array([0.0, 0.0, -mass * GRAVITY]), np.zeros(3), 0.5, 10.0)
+    cert = gravity_certificate(GravityHold(c, n, np.array([0.0, 0.0, -mass * GRAVITY]), np.zeros(3), 0.5,
+                                           10.0))
     assert cert.ok
     np.testing.assert_allclose(cert.forces, np.tile([0.0, 0.0, mass * GRAVITY / 3], (3, 1)), atol=1e-6)
     assert cert.margin == pytest.approx(3 * 10.0 / (mass * GRAVITY), rel=1e-6)
     # the fingers cannot pull: a weight away from them, or along the face, cannot be held
     for w in ([0.0, 0.0, mass * GRAVITY], [mass * GRAVITY, 0.0, 0.0]):
-        away = gravity_certificate(c, n, np.array(w), np.zeros(3), 0.5, 10.0)
+        away = gravity_certificate(GravityHold(c, n, np.array(w), np.zeros(3), 0.5, 10.0))
         assert not away.ok and away.forces is None and away.margin == pytest.approx(0.0, abs=1e-6)
 
 
@@ -147,7 +150,7 @@ def test_tray_holds_a_tilted_weight_iff_tan_alpha_within_mu(alpha, mu, sliding):
     mass, f_max = 0.5, 10.0
     c, n = _triangle_on_bottom(h=0.0)
     weight = mass * GRAVITY * np.array([np.sin(alpha), 0.0, -np.cos(alpha)])
-    cert = gravity_certificate(c, n, weight, np.zeros(3), mu, f_max, sliding=np.full(3, sliding))
+    cert = gravity_certificate(GravityHold(c, n, weight, np.zeros(3), mu, f_max, np.full(3, sliding)))
     mu_eff = 0.0 if sliding else mu
     s = 3 * f_max / (mass * GRAVITY * np.cos(alpha)) if np.tan(alpha) <= mu_eff else 0.0
     assert cert.margin == pytest.approx(s, abs=1e-6)
@@ -162,12 +165,13 @@ def test_a_sliding_contact_adds_no_tangential_force():
         g = rng.normal(size=3)
         g *= GRAVITY / np.linalg.norm(g)
         sliding = np.array([True, False, False, False])
-        cert = gravity_certificate(c, n, mass * g, np.zeros(3), 0.8, 10.0, sliding=sliding)
+        hold = GravityHold(c, n, mass * g, np.zeros(3), 0.8, 10.0, sliding)
+        cert = gravity_certificate(hold)
         assert cert.ok
         f0 = cert.forces[0]
         assert np.linalg.norm(f0 - np.dot(f0, n[0]) * n[0]) <= 1e-9
         assert np.dot(f0, n[0]) <= 1e-9  # pushes, never pulls
-        assert force_violation(c, n, cert.forces, mass * g, np.zeros(3), 0.8, 10.0, sliding) < 1e-6
+        assert hold.violation(cert.forces) < 1e-6
 
 
 def test_linearised_lp_fallback_is_bracketed_by_the_exact_cones():
@@ -180,13 +184,14 @@ def test_linearised_lp_fallback_is_bracketed_by_the_exact_cones():
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         c, com = 0.03 * n, 0.005 * rng.normal(size=3)
         weight = 0.2 * GRAVITY * rng.normal(size=3) / np.sqrt(3)
-        lp = gravity_certificate(c, n, weight, com, 0.6, 10.0, solver="lp")
-        hi = gravity_certificate(c, n, weight, com, 0.6, 10.0, solver="socp")
-        lo = gravity_certificate(c, n, weight, com, 0.6 * np.cos(np.pi / 8), 10.0, solver="socp")
+        hold = GravityHold(c, n, weight, com, 0.6, 10.0)
+        lp = gravity_certificate(hold, solver="lp")
+        hi = gravity_certificate(hold, solver="socp")
+        lo = gravity_certificate(GravityHold(c, n, weight, com, 0.6 * np.cos(np.pi / 8), 10.0), solver="socp")
         assert lo.margin - 1e-6 <= lp.margin <= hi.margin + 1e-6
         checked += lp.margin > 1e-3
         if lp.ok:
-            assert force_violation(c, n, lp.forces, weight, com, 0.6, 10.0) < 1e-6
+            assert hold.violation(lp.forces) < 1e-6
     assert checked >= 5
 
 
@@ -198,13 +203,14 @@ def test_socp_forces_are_a_checkable_certificate():
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         c, com = 0.03 * n, 0.003 * rng.normal(size=3)
         weight = 0.3 * GRAVITY * rng.normal(size=3) / np.sqrt(3)
-        cert = gravity_certificate(c, n, weight, com, 0.5, 10.0)
+        hold = GravityHold(c, n, weight, com, 0.5, 10.0)
+        cert = gravity_certificate(hold)
         if cert.ok:
             held += 1
             assert cert.margin >= 1.0
-            assert force_violation(c, n, cert.forces, weight, com, 0.5, 10.0) < 1e-6
+            assert hold.violation(cert.forces) < 1e-6
             # the same forces do not hold twice the weight
-            assert force_violation(c, n, cert.forces, 2 * weight, com, 0.5, 10.0) > 1.0
+            assert GravityHold(c, n, 2 * weight, com, 0.5, 10.0).violation(cert.forces) > 1.0
     assert held >= 5
 
 
@@ -220,7 +226,8 @@ def test_object_mass_from_mesh_volume_or_given():
 
 def test_certificate_round_trips_through_strict_json():
     c, n = _antipodal(0.0)
-    held = gravity_certificate(c, n, np.array([0.0, -2 * GRAVITY, 0.0]), np.zeros(3), 0.5, 25.0)
+    held = gravity_certificate(GravityHold(c, n, np.array([0.0, -2 * GRAVITY, 0.0]), np.zeros(3), 0.5,
+                                           25.0))
     nan = Certificate("force_closure", False, float("nan"), None, "solver failed")
     for cert in (held, nan, force_closure_certificate(PINCHES, PINCH_NORMALS, 0.5)):
         text = json.dumps(cert.to_dict(), allow_nan=False)
@@ -234,7 +241,7 @@ def test_certify_step_holds_with_the_masked_fingers_only():
     cert = certify_step(c, n, mask, "gravity", 0.5, 0.2, g, center=np.zeros(3))
     assert cert.ok and cert.forces.shape == (5, 3)
     assert np.all(cert.forces[4] == 0.0)
-    assert force_violation(c[:4], n[:4], cert.forces[:4], 0.2 * g, np.zeros(3)) < 1e-6
+    assert GravityHold(c[:4], n[:4], 0.2 * g, np.zeros(3)).violation(cert.forces[:4]) < 1e-6
     # the fifth contact alone pushes along −y and cannot hold anything
     alone = certify_step(c, n, ~mask, "gravity", 0.5, 0.2, g, center=np.zeros(3))
     assert not alone.ok
