@@ -33,7 +33,7 @@ from regrasp_casadi.stability import (
     FRICTION_EDGES,
     contact_mu,
     contact_normals,
-    force_closure_quality,
+    ferrari_canny,
     primitive_wrenches,
     tangent_basis,
     torque_reference,
@@ -118,22 +118,13 @@ def object_mass(mesh: Any, mass: float | None = None, density: float = DENSITY) 
 
 
 # ------------------------------------------------------------------------------------ force closure
-def force_closure_lp_margin(
-    contacts: NDArray[np.float64],
-    normals: NDArray[np.float64],
-    mu: float | NDArray[np.float64] = MU,
-    center: NDArray[np.float64] | None = None,
-    length: float | None = None,
-    n_edges: int = FRICTION_EDGES,
-) -> float:
+def force_closure_lp_margin(W: NDArray[np.float64]) -> float:
     """min over the 12 ± unit wrench directions d_k of the largest s_k with s_k·d_k = Σ λ_j w_j,
-    λ ≥ 0, Σ λ_j ≤ 1 (one LP, HiGHS); w_j the primitive wrenches of `stability.primitive_wrenches`
-    (same arguments and defaults as `stability.force_closure_quality`). > 0 ⇔ force closure."""
+    λ ≥ 0, Σ λ_j ≤ 1 (one LP, HiGHS), for primitive wrenches W (k, 6) (`stability.primitive_wrenches`).
+    > 0 ⇔ force closure."""
     from scipy.optimize import linprog
     from scipy.sparse import block_diag, csr_matrix, hstack
 
-    center, length = torque_scale(contacts, center, length)
-    W = primitive_wrenches(contacts, normals, mu, center, length, n_edges)
     if len(W) == 0:
         return 0.0
     k = len(W)
@@ -162,7 +153,8 @@ def force_closure_certificate(
     """Force-closure certificate of k contacts (k, 3) with outward normals (k, 3), object frame, m.
 
     ok ⇔ the LP margin (`force_closure_lp_margin`) exceeds `FORCE_CLOSURE_TOL`; margin = ε
-    (`stability.force_closure_quality`, torques about `center` scaled by `length`). `mu` is a scalar or
+    (`stability.ferrari_canny`), both of the same primitive wrenches (torques about `center` scaled by
+    `length`). `mu` is a scalar or
     (k,); contacts where `sliding` (k,) is True are frictionless. forces is None.
     """
     c = np.asarray(contacts, float).reshape(-1, 3)
@@ -170,8 +162,8 @@ def force_closure_certificate(
         return Certificate("force_closure", False, 0.0, None, "no holding contacts")
     mu_i = contact_mu(mu, len(c), sliding)
     center, length = torque_scale(c, center, length)
-    eps = force_closure_quality(c, normals, mu_i, center, length, n_edges)
-    s = force_closure_lp_margin(c, normals, mu_i, center, length, n_edges)
+    W = primitive_wrenches(c, normals, mu_i, center, length, n_edges)
+    eps, s = ferrari_canny(W), force_closure_lp_margin(W)
     ok = bool(s > FORCE_CLOSURE_TOL)
     n_slide = int(np.sum(mu_i == 0))
     detail = (f"{'force closure' if ok else 'no force closure'} of {len(c)} contacts"

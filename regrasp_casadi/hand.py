@@ -19,6 +19,7 @@ import logging
 import math
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -312,14 +313,17 @@ class Hand:
             T[ln] = T[j.parent] @ M
         return T
 
-    def _cached(self, key: tuple, build) -> ca.Function:
-        """Build a function once per key; outputs are made dense (fixed numeric layout, fast buffers)."""
+    def _q_function(self, key: tuple, name: str, outputs: Callable[[], dict[str, ca.SX]]) -> ca.Function:
+        """The function `name`: q (n,) -> the expressions of `outputs()` (output name -> SX of ``self._q``),
+        with ``cse``; built once per `key`. Sparse outputs are made dense (a fixed numeric layout for the
+        fast buffers of `_eval`)."""
         fn = self._fn_cache.get(key)
         if fn is None:
-            fn = build()
+            named = outputs()
+            fn = ca.Function(name, [self._q], list(named.values()), ["q"], list(named), {"cse": True})
             if not all(fn.sparsity_out(i).is_dense() for i in range(fn.n_out())):
                 outs = [ca.densify(o) for o in fn.call([self._q])]
-                fn = ca.Function(fn.name(), [self._q], outs, fn.name_in(), fn.name_out(), {"cse": True})
+                fn = ca.Function(name, [self._q], outs, ["q"], list(named), {"cse": True})
             self._fn_cache[key] = fn
         return fn
 
@@ -345,32 +349,13 @@ class Hand:
 
     def fk_function(self) -> ca.Function:
         """``fk``: q (n,) -> one (4, 4) ``T_palm_<link>`` output per link, in ``link_names`` order."""
-        names = [f"T_palm_{ln}" for ln in self.link_names]
-        return self._cached(
-            ("fk",),
-            lambda: ca.Function(
-                "fk",
-                [self._q],
-                [self._T_palm_link[ln] for ln in self.link_names],
-                ["q"],
-                names,
-                {"cse": True},
-            ),
-        )
+        return self._q_function(("fk",), "fk",
+                                lambda: {f"T_palm_{ln}": self._T_palm_link[ln] for ln in self.link_names})
 
     def _fk_stacked_function(self) -> ca.Function:
         """q -> (4, 4 * n_links) horizontally stacked transforms (one output: fast numeric calls)."""
-        return self._cached(
-            ("fk_stacked",),
-            lambda: ca.Function(
-                "fk_stacked",
-                [self._q],
-                [ca.horzcat(*[self._T_palm_link[ln] for ln in self.link_names])],
-                ["q"],
-                ["T_palm_links"],
-                {"cse": True},
-            ),
-        )
+        return self._q_function(("fk_stacked",), "fk_stacked", lambda: {
+            "T_palm_links": ca.horzcat(*[self._T_palm_link[ln] for ln in self.link_names])})
 
     def _check_finger(self, finger: str | None) -> None:
         if finger is not None and finger not in self.tip_links:
@@ -383,60 +368,26 @@ class Hand:
     def tip_position_function(self, finger: str) -> ca.Function:
         """``tip_<finger>``: q (n,) -> p_palm_tip (3,), tip contact-sphere CENTRE, palm frame, m."""
         self._check_finger(finger)
-        return self._cached(
-            ("tip", finger),
-            lambda: ca.Function(
-                _function_name("tip", finger),
-                [self._q],
-                [self._center_expr(self._tip_sphere[finger])],
-                ["q"],
-                ["p_palm_tip"],
-                {"cse": True},
-            ),
-        )
+        return self._q_function(("tip", finger), _function_name("tip", finger),
+                                lambda: {"p_palm_tip": self._center_expr(self._tip_sphere[finger])})
 
     def tip_positions_function(self) -> ca.Function:
         """``tips``: q (n,) -> p_palm_tips (3, m), columns in ``fingers`` order."""
-        return self._cached(
-            ("tips",),
-            lambda: ca.Function(
-                "tips",
-                [self._q],
-                [ca.horzcat(*[self._center_expr(self._tip_sphere[f]) for f in self.fingers])],
-                ["q"],
-                ["p_palm_tips"],
-                {"cse": True},
-            ),
-        )
+        return self._q_function(("tips",), "tips", lambda: {
+            "p_palm_tips": ca.horzcat(*[self._center_expr(self._tip_sphere[f]) for f in self.fingers])})
 
     def tip_jacobian_function(self, finger: str) -> ca.Function:
         """``J_tip_<finger>``: q (n,) -> J (3, n) = d p_palm_tip / d q."""
         self._check_finger(finger)
-
-        def build():
-            p = self._center_expr(self._tip_sphere[finger])
-            return ca.Function(
-                _function_name("J_tip", finger), [self._q], [ca.jacobian(p, self._q)], ["q"], ["J_palm_tip"],
-                {"cse": True},
-            )
-
-        return self._cached(("jac", finger), build)
+        return self._q_function(("jac", finger), _function_name("J_tip", finger), lambda: {
+            "J_palm_tip": ca.jacobian(self._center_expr(self._tip_sphere[finger]), self._q)})
 
     def link_rotation_function(self, link: str) -> ca.Function:
         """``R_<link>``: q (n,) -> R_palm_link (3, 3)."""
         if link not in self._parent_joint and link != self.root_link:
             raise KeyError(f"unknown link {link!r}")
-        return self._cached(
-            ("rot", link),
-            lambda: ca.Function(
-                _function_name("R", link),
-                [self._q],
-                [self._T_palm_link[link][:3, :3]],
-                ["q"],
-                ["R_palm_link"],
-                {"cse": True},
-            ),
-        )
+        return self._q_function(("rot", link), _function_name("R", link),
+                                lambda: {"R_palm_link": self._T_palm_link[link][:3, :3]})
 
     def _select_spheres(self, finger: str | None, include_tip: bool) -> list[CollisionSphere]:
         self._check_finger(finger)
@@ -449,19 +400,13 @@ class Hand:
         """q (n,) -> p_palm_spheres (3, k): centres of the non-tip spheres of ``finger`` (None: all, palm
         included), palm frame, m; ``include_tip`` appends the tip sphere(s). Order = ``sphere_labels``."""
 
-        def build():
+        def outputs() -> dict[str, ca.SX]:
             sel = self._select_spheres(finger, include_tip)
-            expr = ca.horzcat(*[self._center_expr(s) for s in sel]) if sel else ca.SX(3, 0)
-            return ca.Function(
-                f"spheres_{finger or 'all'}{'_tip' if include_tip else ''}",
-                [self._q],
-                [expr],
-                ["q"],
-                ["p_palm_spheres"],
-                {"cse": True},
-            )
+            centers = ca.horzcat(*[self._center_expr(s) for s in sel]) if sel else ca.SX(3, 0)
+            return {"p_palm_spheres": centers}
 
-        return self._cached(("spheres", finger, include_tip), build)
+        return self._q_function(("spheres", finger, include_tip),
+                                f"spheres_{finger or 'all'}{'_tip' if include_tip else ''}", outputs)
 
     def sphere_radii(self, finger: str | None = None, include_tip: bool = False) -> NDArray[np.float64]:
         """(k,) radii, m, in the order of ``sphere_centers_function(finger, include_tip)``."""

@@ -18,7 +18,7 @@ from regrasp_casadi.constants import MU
 
 __all__ = [
     "FRICTION_EDGES", "contact_mu", "tangent_basis", "primitive_wrenches", "torque_scale",
-    "force_closure_quality", "contact_normals", "holding_quality", "torque_reference",
+    "force_closure_quality", "ferrari_canny", "contact_normals", "holding_quality", "torque_reference",
 ]
 
 FRICTION_EDGES = 8
@@ -114,7 +114,13 @@ def force_closure_quality(
         ε (dimensionless with L-scaled torques).
     """
     center, length = torque_scale(contacts, center, length)
-    W = primitive_wrenches(contacts, normals, mu, center, length, n_edges)
+    return ferrari_canny(primitive_wrenches(contacts, normals, mu, center, length, n_edges))
+
+
+def ferrari_canny(W: NDArray[np.float64]) -> float:
+    """Ferrari–Canny ε of primitive wrenches W (k, 6) (`primitive_wrenches`): the signed distance from
+    the origin to the boundary of their convex hull (> 0 inside, 0 when they span less than 6
+    dimensions)."""
     from scipy.spatial import ConvexHull, QhullError  # imported here: `import regrasp_casadi` stays light
 
     if len(W) < 7 or np.linalg.matrix_rank(W - W.mean(axis=0), tol=1e-9) < 6:

@@ -24,7 +24,7 @@ from regrasp_casadi.certificates import (
     step_certificates,
 )
 from regrasp_casadi.plan import Plan, PlanStep
-from regrasp_casadi.stability import force_closure_quality
+from regrasp_casadi.stability import force_closure_quality, primitive_wrenches
 
 TETRA = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], float) / np.sqrt(3)
 # four pinch contacts on the x = ±3 cm faces of a box, spread along y and z
@@ -53,7 +53,7 @@ def test_two_antipodal_point_contacts_are_never_force_closure(theta):
     cert = force_closure_certificate(c, n, mu=0.5, center=np.zeros(3), length=0.03)
     assert not cert.ok
     assert cert.margin <= 0.0
-    assert force_closure_lp_margin(c, n, 0.5, np.zeros(3), 0.03) < 1e-9
+    assert force_closure_lp_margin(primitive_wrenches(c, n, 0.5, np.zeros(3), 0.03)) < 1e-9
 
 
 def test_contacts_on_one_face_are_not_force_closure():
@@ -84,7 +84,7 @@ def test_lp_margin_agrees_with_and_brackets_ferrari_canny_on_random_grasps():
         mu = rng.uniform(0.2, 0.9, m)
         sliding = rng.random(m) < 0.2
         eps = force_closure_quality(c, n, np.where(sliding, 0.0, mu), np.zeros(3), 0.03)
-        s = force_closure_lp_margin(c, n, np.where(sliding, 0.0, mu), np.zeros(3), 0.03)
+        s = force_closure_lp_margin(primitive_wrenches(c, n, np.where(sliding, 0.0, mu), np.zeros(3), 0.03))
         cert = force_closure_certificate(c, n, mu, np.zeros(3), 0.03, sliding=sliding)
         assert cert.margin == eps
         if abs(eps) > 1e-6:
