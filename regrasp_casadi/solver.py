@@ -159,22 +159,6 @@ class Bounds:
 
 # ------------------------------------------------------------------------------------ solve, success
 @dataclass(frozen=True)
-class SolveStats:
-    """What every NLP result reports about its solves (the NLPs' `*Result`s extend it)."""
-
-    status: str
-    """The backend's return_status of the last solve ("not_solved" when none was made)."""
-    success: bool
-    """True when the result satisfies the NLP's constraints with the exact geometry (whatever the
-    backend's status)."""
-    iterations: int
-    """Backend iterations over all solves."""
-    solve_time: float
-    """Wall time inside the solves, s."""
-
-
-
-@dataclass(frozen=True)
 class SolveResult:
     """The outcome of one NLP solve."""
 
@@ -368,6 +352,22 @@ class Correction(Generic[Evaluation]):
     def status(self) -> str:
         """The backend's return_status of the last solve, or "not_solved" when none was made."""
         return self.result.status if self.result is not None else "not_solved"
+
+
+@dataclass(frozen=True)
+class SolveStats:
+    """What every NLP result reports about its solves, taken from its `Correction` (the NLPs' `*Result`s
+    extend it)."""
+
+    status: str
+    """The backend's return_status of the last solve ("not_solved" when none was made)."""
+    success: bool
+    """True when the result satisfies the NLP's constraints with the exact geometry (whatever the
+    backend's status)."""
+    iterations: int
+    """Backend iterations over all solves."""
+    solve_time: float
+    """Wall time inside the solves, s."""
 
 
 def clipped_if_finite(bounds: Bounds) -> Callable[[SolveResult], NDArray[np.float64] | None]:
