@@ -28,6 +28,7 @@ import collections
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -202,17 +203,50 @@ def _sample_pose(hand, obj, data, rng, guess) -> NDArray[np.float64]:
     return T
 
 
-def _pick_targets(hand, data, ws, T, rng, avoid, min_mean_distance, mu, tries: int = 12):
+class _Away(NamedTuple):
+    """What a desired grasp must keep from the initial one: its contacts (object frame, m) on average
+    at least `min_mean_distance` (m) from `contacts_object` (m, 3)."""
+
+    contacts_object: NDArray[np.float64]
+    min_mean_distance: float
+
+    def keeps(self, contacts_object: NDArray[np.float64]) -> bool:
+        """Whether the contacts (m, 3) (object frame, m) keep the mean distance."""
+        distances = np.linalg.norm(contacts_object - self.contacts_object, axis=1)
+        return bool(np.mean(distances) >= self.min_mean_distance)
+
+
+@dataclass(frozen=True)
+class _Search:
+    """What the attempts of a generation share: the models, the grasp NLP, the object's surface samples,
+    the hand's workspace samples and the friction coefficient of the force-closure tests."""
+
+    hand: Hand
+    obj: ObjectModel
+    nlp: GraspNLP
+    data: _ObjectData
+    ws: _Workspace
+    mu: float
+
+
+def _search(hand: Hand, obj: ObjectModel, mu: float, beta: float) -> _Search:
+    """The (cached) NLP and samples of (`hand`, `obj`, β = `beta` m) and friction `mu`."""
+    return _Search(hand, obj, grasp_nlp(hand, obj, beta), _object_data(hand, obj), _workspace(hand), mu)
+
+
+def _pick_targets(search: _Search, T, rng, away: _Away | None, tries: int = 12):
     """Target indices whose own contacts (surface points, face normals) are in force closure."""
+    data = search.data
     for _ in range(tries):
-        idx = _pick_targets_once(hand, data, ws, T, rng, avoid, min_mean_distance)
-        if idx is not None and force_closure_quality(data.points[idx], data.normals[idx], mu * _CONE_SHRINK,
-                                                     data.com, data.length) > 2 * _MIN_QUALITY:
+        idx = _pick_targets_once(search.hand, data, search.ws, T, rng, away)
+        if idx is not None and force_closure_quality(data.points[idx], data.normals[idx],
+                                                     search.mu * _CONE_SHRINK, data.com,
+                                                     data.length) > 2 * _MIN_QUALITY:
             return idx
     return None
 
 
-def _pick_targets_once(hand, data, ws, T, rng, avoid, min_mean_distance):
+def _pick_targets_once(hand: Hand, data: _ObjectData, ws: _Workspace, T, rng, away: _Away | None):
     """Contact targets (surface point, normal) per finger, object frame; None if none fit.
 
     The non-thumb fingers get reachable targets ≥ `_TIP_SPACING` apart; the thumb gets a reachable target
@@ -228,9 +262,9 @@ def _pick_targets_once(hand, data, ws, T, rng, avoid, min_mean_distance):
     for f in fingers:
         dist, _ = ws.trees[f].query(goals, k=1)
         ok = dist <= _REACH_TOL
-        if avoid is not None:
-            dd = np.linalg.norm(data.points - avoid[fingers.index(f)], axis=1)
-            ok &= dd >= min_mean_distance
+        if away is not None:
+            dd = np.linalg.norm(data.points - away.contacts_object[fingers.index(f)], axis=1)
+            ok &= dd >= away.min_mean_distance
         reach[f] = np.nonzero(ok)[0]
         if len(reach[f]) == 0:
             return None
@@ -275,14 +309,16 @@ def _initial_q(hand, ws, goals_palm, rng) -> NDArray[np.float64]:
 
 
 # --------------------------------------------------------------------------------------- attempt
-def _attempt(hand, obj, nlp: GraspNLP, data, ws, rng, mu, guess, avoid, min_mean_distance) -> Grasp | None:
+def _attempt(search: _Search, rng, guess, away: _Away | None) -> Grasp | None:
+    """One attempt (the module docstring's "How"): a grasp, or None (the reason counted in `_STATS`)."""
+    hand, obj, nlp, data, mu = search.hand, search.obj, search.nlp, search.data, search.mu
     T0 = _sample_pose(hand, obj, data, rng, guess)
-    idx = _pick_targets(hand, data, ws, T0, rng, avoid, min_mean_distance, mu)
+    idx = _pick_targets(search, T0, rng, away)
     if idx is None:
         _STATS["no_targets"] += 1
         return None
     targets_obj = data.points[idx] + hand.tip_radius * data.normals[idx]
-    q0 = _initial_q(hand, ws, transform_points(T0, targets_obj), rng)
+    q0 = _initial_q(hand, search.ws, transform_points(T0, targets_obj), rng)
     check, why_not = solve_exact(nlp, targets_obj, q0, T0)
     if check is None:
         _STATS[why_not] += 1
@@ -351,29 +387,26 @@ def generate_grasps(
     Raises:
         GraspError: if fewer than `n` grasps were found within `max_attempts`.
     """
-    return _generate(hand, obj, n, seed, mu, beta, T_palm_object_guess, max_attempts, None, 0.0, progress)
+    return _generate(_search(hand, obj, mu, beta), n, seed, T_palm_object_guess, max_attempts,
+                     progress=progress)
 
 
-def _generate(hand, obj, n, seed, mu, beta, guess, max_attempts, avoid, min_mean_distance,
-              progress=None) -> list[Grasp]:
+def _generate(search: _Search, n: int, seed: int, guess, max_attempts: int | None, *,
+              away: _Away | None = None, progress=None) -> list[Grasp]:
+    """`n` grasps from the attempts seeded (`seed`, attempt); see `generate_grasps`."""
     max_attempts = 60 * n if max_attempts is None else int(max_attempts)
-    nlp = grasp_nlp(hand, obj, beta)
-    data = _object_data(hand, obj)
-    ws = _workspace(hand)
     out: list[Grasp] = []
     for attempt in range(max_attempts):
-        g = _attempt(hand, obj, nlp, data, ws, np.random.default_rng([seed, attempt]), mu, guess, avoid,
-                     min_mean_distance)
-        if g is not None and avoid is not None:
-            if np.mean(np.linalg.norm(g.contacts_object - avoid, axis=1)) < min_mean_distance:
-                g = None
+        g = _attempt(search, np.random.default_rng([seed, attempt]), guess, away)
+        if g is not None and away is not None and not away.keeps(g.contacts_object):
+            g = None
         if g is not None:
             out.append(g)
         if progress is not None:
             progress(len(out), attempt + 1)
         if len(out) == n:
             return out
-    raise GraspError(f"found {len(out)} of {n} grasps on {obj.name!r} in {max_attempts} attempts "
+    raise GraspError(f"found {len(out)} of {n} grasps on {search.obj.name!r} in {max_attempts} attempts "
                      f"(seed {seed})")
 
 
@@ -413,12 +446,13 @@ def generate_regrasp_pairs(
     Raises:
         GraspError: if the pairs could not be found.
     """
+    search = _search(hand, obj, mu, beta)
     pairs: list[tuple[Grasp, Grasp]] = []
     for i in range(20 * n_pairs):
-        init = _generate(hand, obj, 1, seed * 100003 + i, mu, beta, None, 60, None, 0.0)[0]
+        init = _generate(search, 1, seed * 100003 + i, None, 60)[0]
         try:
-            goal = _generate(hand, obj, 1, seed * 100003 + 50000 + i, mu, beta, init.T_palm_object,
-                             max_attempts, init.contacts_object, min_mean_distance)[0]
+            goal = _generate(search, 1, seed * 100003 + 50000 + i, init.T_palm_object, max_attempts,
+                             away=_Away(init.contacts_object, min_mean_distance))[0]
         except GraspError:
             log.debug("pair %d: no desired grasp for this initial grasp", i)
             goal = None

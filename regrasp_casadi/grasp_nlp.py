@@ -52,6 +52,19 @@ _SOLVER_OPTIONS = _solver.SolverOptions(max_iter=400, tol=1e-10, acceptable_tol=
 """Tight tolerances and exact bounds: a generated grasp is checked to 0.1 mm with the exact distance."""
 
 
+@dataclass(frozen=True)
+class _Round:
+    """What one solve of the grasp NLP is given: the pose prior, the joint prior, the objective weights
+    and the exact-distance offsets."""
+
+    R0: NDArray[np.float64]
+    t0: NDArray[np.float64]
+    q_ref: NDArray[np.float64]
+    weights: NDArray[np.float64]  # target, joints, translation, rotation
+    delta_tip: NDArray[np.float64]
+    delta_sph: NDArray[np.float64]
+
+
 class GraspNLP:
     """The grasp-synthesis NLP of the module docstring for one (hand, object, β); decision variables
     x = (q (n,), δt (3,), a (3,)), parameters `layout`."""
@@ -97,20 +110,21 @@ class GraspNLP:
         g_sph = sd_sph.T + P["delta_sph"] - ca.DM(self.radii)
         g = ca.vertcat(g_tip, g_sph)
         # bounds
-        self.lbg = np.concatenate([np.zeros(m), np.full(k, self.beta + _MARGIN)])
-        self.ubg = np.concatenate([np.zeros(m), np.full(k, np.inf)])
-        self.lbx = np.concatenate([hand.q_lower, np.full(3, -0.05), np.full(3, -0.5)])
-        self.ubx = np.concatenate([hand.q_upper, np.full(3, 0.05), np.full(3, 0.5)])
+        self.bounds = _solver.Bounds(
+            lbx=np.concatenate([hand.q_lower, np.full(3, -0.05), np.full(3, -0.5)]),
+            ubx=np.concatenate([hand.q_upper, np.full(3, 0.05), np.full(3, 0.5)]),
+            lbg=np.concatenate([np.zeros(m), np.full(k, self.beta + _MARGIN)]),
+            ubg=np.concatenate([np.zeros(m), np.full(k, np.inf)]))
         # solver
         nlp = {"x": x, "p": p, "f": f, "g": g}
         self.solver = _solver.build_solver("grasp_synthesis", nlp, _SOLVER_OPTIONS)
-        self.bounds = _solver.Bounds(self.lbx, self.ubx, self.lbg, self.ubg)
         self.eval_points = ca.Function("grasp_points", [x, p], [tips_obj, sph_obj, sd_tip, sd_sph])
 
-    def pack(self, R0, t0, targets, delta_tip, delta_sph, q_ref, weights) -> NDArray[np.float64]:
-        """p of a solve; `targets` (m, 3) tip-centre targets, object frame, m (rows per finger)."""
-        return self.layout.pack(R0=R0, t0=t0, targets=np.asarray(targets).T, delta_tip=delta_tip,
-                                delta_sph=delta_sph, q_ref=q_ref, weights=weights)
+    def pack(self, targets: NDArray[np.float64], rnd: _Round) -> NDArray[np.float64]:
+        """p of a solve towards `targets` (m, 3) (tip-centre targets, object frame, m, rows per finger)
+        with the priors, weights and offsets of `rnd`."""
+        return self.layout.pack(R0=rnd.R0, t0=rnd.t0, targets=np.asarray(targets).T, delta_tip=rnd.delta_tip,
+                                delta_sph=rnd.delta_sph, q_ref=rnd.q_ref, weights=rnd.weights)
 
     def pose(self, x, R0, t0) -> NDArray[np.float64]:
         """Object pose (4, 4), palm frame, at `x` for the pose prior (R0 (3, 3), t0 (3,))."""
@@ -129,19 +143,6 @@ _NLP_CACHE = _solver.NLPCache(max_size=8)
 def grasp_nlp(hand: Hand, obj: ObjectModel, beta: float) -> GraspNLP:
     """The grasp NLP of (`hand`, `obj`, `beta` m), built on first use and kept in a small cache."""
     return _NLP_CACHE.get("grasp_synthesis", hand, obj, float(beta), lambda: GraspNLP(hand, obj, beta))
-
-
-@dataclass(frozen=True)
-class _Round:
-    """What one solve of the grasp NLP is given: the pose prior, the joint prior, the objective weights
-    and the exact-distance offsets."""
-
-    R0: NDArray[np.float64]
-    t0: NDArray[np.float64]
-    q_ref: NDArray[np.float64]
-    weights: NDArray[np.float64]  # target, joints, translation, rotation
-    delta_tip: NDArray[np.float64]
-    delta_sph: NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -178,7 +179,7 @@ def solve_exact(nlp: GraspNLP, targets_obj: NDArray[np.float64], q0: NDArray[np.
     r = hand.tip_radius
 
     def params(rnd: _Round):
-        return nlp.pack(rnd.R0, rnd.t0, targets_obj, rnd.delta_tip, rnd.delta_sph, rnd.q_ref, rnd.weights)
+        return nlp.pack(targets_obj, rnd)
 
     def evaluate(x, rnd: _Round) -> GraspSolution:
         tips_obj, sph_obj, sd_tip, sd_sph = (np.asarray(v) for v in nlp.eval_points(x, params(rnd)))
