@@ -388,7 +388,7 @@ def gravity_certificate(hold: GravityHold, solver: Literal["auto", "socp", "lp"]
 
 
 # ------------------------------------------------------------------------------------ plan steps
-def certify_step(
+def certify_step(  # noqa: PLR0913 (the force-closure and the gravity data of a step; knobs keyword-only)
     contacts_object: NDArray[np.float64],
     normals_object: NDArray[np.float64],
     holding_mask: NDArray[np.bool_],

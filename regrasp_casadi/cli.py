@@ -259,7 +259,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_grasps(args: argparse.Namespace) -> int:
     try:
-        import regrasp_casadi.grasp_gen as grasp_gen
+        from regrasp_casadi import grasp_gen
     except ImportError as e:
         raise _UserError(f"grasp generation is not available (regrasp_casadi.grasp_gen: {e})") from None
     out = check_output("--out", args.out)

@@ -44,7 +44,7 @@ def _number(kind: type, minimum: float, strict: bool, what: str) -> Callable[[st
             value = kind(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-        if not (value > minimum if strict else value >= minimum) or value != value:  # NaN fails too
+        if not (value > minimum if strict else value >= minimum):  # NaN fails both comparisons
             raise argparse.ArgumentTypeError(f"expected {what}, got {text}")
         return value
 

@@ -273,7 +273,7 @@ def _pick_targets_once(hand: Hand, data: _ObjectData, ws: _Workspace, T, rng, aw
         cand = reach[f]
         for i in chosen.values():
             cand = cand[np.linalg.norm(goals[cand] - goals[i], axis=1) >= _TIP_SPACING]
-        if len(chosen):
+        if chosen:
             n_mean = np.mean([N[i] for i in chosen.values()], axis=0)
             cand = cand[N[cand] @ n_mean >= 0.3]
         if len(cand) == 0:

@@ -251,7 +251,7 @@ class ObjectModel:
 
     @classmethod
     def bottle(cls, body_radius: float = 0.03, body_height: float = 0.12, shoulder_height: float = 0.03,
-               neck_radius: float = 0.012, neck_height: float = 0.04, sections: int = 32,
+               neck_radius: float = 0.012, neck_height: float = 0.04, sections: int = 32, *,
                threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
                ) -> ObjectModel:
         """Bottle: solid of revolution (body, shoulder, neck), 0.19 m tall; see `shapes.bottle_mesh`."""
@@ -263,7 +263,7 @@ class ObjectModel:
 
     @classmethod
     def banana(cls, length: float = 0.18, thickness: float = 0.036, bend_radius: float = 0.13,
-               rings: int = 24, sections: int = 16, threshold: float = DEFAULT_THRESHOLD,
+               rings: int = 24, sections: int = 16, *, threshold: float = DEFAULT_THRESHOLD,
                max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
         """Banana-like curved, tapered tube, 0.18 m long and 0.036 m thick; see `shapes.banana_mesh`."""
         dims = {"length": float(length), "thickness": float(thickness), "bend_radius": float(bend_radius),

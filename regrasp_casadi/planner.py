@@ -421,8 +421,9 @@ def _pose_distance(T_a: NDArray, T_b: NDArray, obj: ObjectModel) -> float:
     return float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]) + radius * rotation_angle(T_a[:3, :3], T_b[:3, :3]))
 
 
-def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> str:
-    """Why the input cannot be planned ("" when it can)."""
+def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> str:  # noqa: PLR0911
+    """Why the input cannot be planned ("" when it can): a chain of checks, each returning its message
+    (hence the returns beyond PLR0911's limit)."""
     if grasp0.q is None:
         return "the initial grasp has no joint angles (build it with Grasp.from_joints)"
     if grasp_goal.hand is not grasp0.hand and grasp_goal.hand.spec() != grasp0.hand.spec():

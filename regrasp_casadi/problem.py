@@ -219,33 +219,43 @@ def _load_object(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> ObjectModel:
     if ("primitive" in v) == ("mesh" in v):
         raise ctx.error("object", "give exactly one of 'primitive' or 'mesh'")
     if "mesh" in v:
-        _mapping(ctx, "object", v, _MESH_KEYS)
-        if not isinstance(v["mesh"], str):
-            raise ctx.error("object.mesh", f"expected a path, got {v['mesh']!r}")
-        if "scale" in v and not (_is_number(v["scale"]) and v["scale"] > 0):
-            raise ctx.error("object.scale", f"expected a positive number, got {v['scale']!r}")
+        _check_mesh_object(ctx, v)
     else:
-        kind = v["primitive"]
-        if kind not in _PRIMITIVES:
-            raise ctx.error("object.primitive",
-                            f"unknown primitive {kind!r} (one of {', '.join(_PRIMITIVES)})")
-        params = [p for p in inspect.signature(getattr(ObjectModel, kind)).parameters if p != "cls"]
-        _mapping(ctx, "object", v, ("primitive", *params))
-        missing = [k for k in _PRIMITIVE_DIMENSIONS[kind] if k not in v]
-        if missing:
-            raise ctx.error("object", f"primitive {kind} needs its dimensions: missing key(s) "
-                                      f"{', '.join(missing)} (m)")
-        for k, x in v.items():
-            if k == "extents":
-                ext = _numbers(ctx, "object.extents", x, 3)
-                if np.any(ext <= 0):
-                    raise ctx.error("object.extents", f"expected positive sizes, got {x}")
-            elif k != "primitive" and not (_is_number(x) and x > 0):
-                raise ctx.error(f"object.{k}", f"expected a positive number, got {x!r}")
+        _check_primitive_object(ctx, v, ObjectModel)
     try:
         return ObjectModel.from_spec(dict(v), base_dir=base_dir)
     except (MeshError, ValueError, TypeError) as e:
         raise ctx.error("object", str(e)) from None
+
+
+def _check_mesh_object(ctx: _Ctx, v: dict) -> None:
+    """The keys of a `mesh:` object (before loading it)."""
+    _mapping(ctx, "object", v, _MESH_KEYS)
+    if not isinstance(v["mesh"], str):
+        raise ctx.error("object.mesh", f"expected a path, got {v['mesh']!r}")
+    if "scale" in v and not (_is_number(v["scale"]) and v["scale"] > 0):
+        raise ctx.error("object.scale", f"expected a positive number, got {v['scale']!r}")
+
+
+def _check_primitive_object(ctx: _Ctx, v: dict, object_model: type) -> None:
+    """The keys of a `primitive:` object: a known primitive, its dimensions (the keyword arguments of
+    its `ObjectModel` constructor), all positive."""
+    kind = v["primitive"]
+    if kind not in _PRIMITIVES:
+        raise ctx.error("object.primitive", f"unknown primitive {kind!r} (one of {', '.join(_PRIMITIVES)})")
+    params = [p for p in inspect.signature(getattr(object_model, kind)).parameters if p != "cls"]
+    _mapping(ctx, "object", v, ("primitive", *params))
+    missing = [k for k in _PRIMITIVE_DIMENSIONS[kind] if k not in v]
+    if missing:
+        raise ctx.error("object", f"primitive {kind} needs its dimensions: missing key(s) "
+                                  f"{', '.join(missing)} (m)")
+    for k, x in v.items():
+        if k == "extents":
+            ext = _numbers(ctx, "object.extents", x, 3)
+            if np.any(ext <= 0):
+                raise ctx.error("object.extents", f"expected positive sizes, got {x}")
+        elif k != "primitive" and not (_is_number(x) and x > 0):
+            raise ctx.error(f"object.{k}", f"expected a positive number, got {x!r}")
 
 
 def _grasp(ctx: _Ctx, key: str, build) -> Grasp:

@@ -438,7 +438,7 @@ def _record_final_metrics(ctx: VerifyContext) -> None:
 
 
 # ---------------------------------------------------------------------------------------------- verify
-def verify(
+def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regrasp verify` flags)
     plan: Plan | str | os.PathLike,
     hand: Hand | None = None,
     obj: ObjectModel | None = None,

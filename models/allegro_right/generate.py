@@ -121,14 +121,16 @@ def _link(name: str, spheres: list[dict], visuals, tip: bool) -> str:
     return "\n".join(lines)
 
 
-def _joint(name, jtype, parent, child, xyz, rpy, axis=None, lower=None, upper=None) -> str:
+def _joint(name, jtype, parent, child, xyz, rpy, limit=None) -> str:
+    """A <joint>; `limit` (axis, lower, upper) for a revolute one."""
     lines = [
         f'  <joint name="{name}" type="{jtype}">',
         f'    <parent link="{parent}"/>',
         f'    <child link="{child}"/>',
         f'    <origin xyz="{xyz}" rpy="{rpy}"/>',
     ]
-    if axis is not None:
+    if limit is not None:
+        axis, lower, upper = limit
         lines += [
             f'    <axis xyz="{axis}"/>',
             f'    <limit lower="{lower}" upper="{upper}" effort="15" velocity="7"/>',
@@ -162,10 +164,10 @@ def build_urdf(cover: dict) -> str:
             child = f"link_{i}.0"
             add_link(child)
             if k == 0:
-                parts.append(_joint(f"joint_{i}.0", "revolute", parent, child, xyz0, rpy0, *FINGER_J0))
+                parts.append(_joint(f"joint_{i}.0", "revolute", parent, child, xyz0, rpy0, FINGER_J0))
             else:
                 xyz, axis, lo, hi = FINGER_CHAIN[k - 1]
-                parts.append(_joint(f"joint_{i}.0", "revolute", parent, child, xyz, "0 0 0", axis, lo, hi))
+                parts.append(_joint(f"joint_{i}.0", "revolute", parent, child, xyz, "0 0 0", (axis, lo, hi)))
             parent = child
         add_link(f"{parent}_tip", tip=True)
         parts.append(
@@ -183,7 +185,7 @@ def build_urdf(cover: dict) -> str:
     for k, (xyz, rpy, axis, lo, hi) in enumerate(THUMB):
         child = f"link_{12 + k}.0"
         add_link(child)
-        parts.append(_joint(f"joint_{12 + k}.0", "revolute", parent, child, xyz, rpy, axis, lo, hi))
+        parts.append(_joint(f"joint_{12 + k}.0", "revolute", parent, child, xyz, rpy, (axis, lo, hi)))
         parent = child
     add_link("link_15.0_tip", tip=True)
     parts.append(_joint("joint_15.0_tip", "fixed", parent, "link_15.0_tip", f"0 0 {THUMB_TIP_Z}", "0 0 0"))
