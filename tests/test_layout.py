@@ -15,6 +15,7 @@ MAX_MODULE_LINES = 600
 MAX_FUNCTION_LINES = 80
 
 PACKAGE = Path(regrasp_casadi.__file__).resolve().parent
+REPO = Path(__file__).resolve().parents[1]
 
 
 def _modules() -> list[Path]:
@@ -66,3 +67,12 @@ def test_no_function_over_80_lines():
     long = {f"{p.name}:{name}": n for p in _modules()
             for name, n in _long_functions(p.read_text(encoding="utf-8"), MAX_FUNCTION_LINES)}
     assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {long}"
+
+
+def test_ci_runs_the_readme_command_with_the_lint():
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    block = readme.split("Run the lint and the tests", 1)[1].split("```bash\n", 1)[1].split("\n```", 1)[0]
+    ci = [line for line in (REPO / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+          if line and not line.startswith("#")]
+    assert ci[-1] == block.strip()
+    assert "ruff check . && python -m pytest" in block
