@@ -28,7 +28,7 @@ Contact normal of a finger at a step = unit vector from its contact point to its
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -303,30 +303,42 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
         i, s = int(seg_idx[k]), float(phase[k])
         F, w, u, lift = _phase_weights(segments[i], s, opts)
         q_cmd[k] = q_lin[k] if segments[i].gait is None else Q[i - 1] + u * (Q[i] - Q[i - 1])
-        q_cmd[k] += _grip_offset(plan, hand, opts, q_cmd[k], T[k], contacts[max(i - 1, 0)], contacts[i],
-                                 s, F, w, lift, segments[i].gait)
-    q0 = Q[0] + _grip_offset(plan, hand, opts, Q[0], np.asarray(plan.steps[0].T_palm_object), contacts[0],
-                             contacts[0], 1.0, segments[0].F0, segments[0].w0.astype(float), None, None)
+        n_object = (1 - s) * contacts[max(i - 1, 0)].n_object + s * contacts[i].n_object
+        q_cmd[k] += _grip_offset(hand, plan.fingers, opts, q_cmd[k], T[k][:3, :3], n_object,
+                                 _Grip(F, w, segments[i].gait, lift))
+    R0 = np.asarray(plan.steps[0].T_palm_object)[:3, :3]
+    q0 = Q[0] + _grip_offset(hand, plan.fingers, opts, Q[0], R0, contacts[0].n_object,
+                             _Grip(segments[0].F0, segments[0].w0.astype(float), None, None))
     return t, q_cmd, T, q0, np.asarray(residual)
 
 
-def _grip_offset(plan: Plan, hand, opts: SimOptions, q: NDArray, T: NDArray, c0: StepContacts,
-                 c1: StepContacts, s: float, F: NDArray, w: NDArray, lift: float | None,
-                 gait: int | None) -> NDArray:
-    """(n,) joint offset at one instant: grip of every finger plus the gait finger's lift."""
+class _Grip(NamedTuple):
+    """What the fingers do at one instant: grip forces F (m, 3) on the object (object frame, N), squeeze
+    weights w (m,), the gait finger's row (None: no gait) and its lift phase in [0, 1] (None: no lift)."""
+
+    F: NDArray
+    w: NDArray
+    gait: int | None
+    lift: float | None
+
+
+def _grip_offset(hand, fingers, opts: SimOptions, q: NDArray, R_palm_object: NDArray, n_object: NDArray,
+                 grip: _Grip) -> NDArray:
+    """(n,) joint offset at one instant: grip of every finger plus the gait finger's lift; `n_object`
+    (m, 3) the contact normals (object frame, not necessarily unit), rows in `fingers` order."""
     dq = np.zeros(len(q))
-    R = T[:3, :3]
-    for m, f in enumerate(plan.fingers):
-        n_obj = (1 - s) * c0.n_object[m] + s * c1.n_object[m]
+    R = R_palm_object
+    for m, f in enumerate(fingers):
+        n_obj = n_object[m]
         n_palm = R @ (n_obj / max(np.linalg.norm(n_obj), 1e-12))
         J = None
-        if opts.grip == "balanced" and np.any(F[m]):
+        if opts.grip == "balanced" and np.any(grip.F[m]):
             J = hand.tip_jacobian(q, f)
-            dq += J.T @ (R @ F[m]) / opts.kp
-        elif opts.grip == "squeeze" and w[m] > 0:
+            dq += J.T @ (R @ grip.F[m]) / opts.kp
+        elif opts.grip == "squeeze" and grip.w[m] > 0:
             J = hand.tip_jacobian(q, f)
-            dq += _dls(J, -opts.squeeze_depth * w[m] * n_palm)
-        if m == gait and lift is not None:
+            dq += _dls(J, -opts.squeeze_depth * grip.w[m] * n_palm)
+        if m == grip.gait and grip.lift is not None:
             J = hand.tip_jacobian(q, f) if J is None else J
-            dq += _dls(J, opts.lift_height * np.sin(np.pi * lift) * n_palm)
+            dq += _dls(J, opts.lift_height * np.sin(np.pi * grip.lift) * n_palm)
     return dq

@@ -190,7 +190,8 @@ class _Probe:
         return tuple(f for f in self.fingers if f in touching), tip_force, other
 
 
-def _record(probe: _Probe, model, data, T_plan, step: int, kind: str, finger, residual: float) -> StepRecord:
+def _record(probe: _Probe, model, data, T_plan, *, step: int, kind: str, finger,
+            residual: float) -> StepRecord:
     dev_mm, dev_deg = probe.deviation(data, T_plan)
     touching, tip_force, other = probe.contacts(model, data)
     return StepRecord(step, kind, finger, float(data.time), dev_mm, dev_deg, touching, tip_force, other,
@@ -253,8 +254,9 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
         mujoco.mj_step(model, data)
         if k + 1 in step_at:
             i = step_at[k + 1]
-            records.append(_record(probe, model, data, plan.steps[i].T_palm_object, i,
-                                   plan.steps[i].kind, plan.steps[i].finger, residual[i]))
+            st = plan.steps[i]
+            records.append(_record(probe, model, data, st.T_palm_object, step=i, kind=st.kind,
+                                   finger=st.finger, residual=residual[i]))
         if (k + 1) % every == 0 or k + 1 == len(Q):
             dev_mm, dev_deg = probe.deviation(data, T_ref[k])
             series["t"].append(float(data.time))
@@ -269,8 +271,8 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
             if drop_time is None and dev_mm > opts.drop_distance * 1e3:
                 drop_time = float(data.time)
     model.opt.gravity[:] = gravity
-    records.append(_record(probe, model, data, plan.steps[-1].T_palm_object, len(plan.steps), "hold", None,
-                           residual[-1]))
+    records.append(_record(probe, model, data, plan.steps[-1].T_palm_object, step=len(plan.steps),
+                           kind="hold", finger=None, residual=residual[-1]))
     return records, series, drop_time
 
 
