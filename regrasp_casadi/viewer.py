@@ -272,7 +272,7 @@ def _rot_x90() -> NDArray:
 
 
 def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Keyframe], fps: float,
-                 static_frame: int = -1, scene_hud: bool = True) -> None:
+                 *, static_frame: int = -1, scene_hud: bool = True) -> None:
     """Send geometry once, `frames[static_frame]` as the static pose, and the animation of transforms.
 
     The static pose is what a viewer shows before the animation starts and where a property is not
