@@ -4,6 +4,7 @@
     regrasp verify plan.json [--all] [--zeta MM] [--eta MM] [--surface-tol MM] [--max-slip MM] ...
     regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]]
     regrasp simulate plan.json [--gravity X Y Z] [--json report.json]
+    regrasp export plan.json --csv traj.csv [--dt 0.01]
     regrasp grasps MESH_OR_PROBLEM [--hand MODEL] [--n N] [--seed S] [--out problems/x.yaml]
     regrasp bench [--backend process|ray|serial] [--address ADDR] [ARGS ...]
                                       (runs benchmarks/paper_objects.py)
@@ -257,6 +258,35 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK if report.held else EXIT_FAILED
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    """Write the plan's joint trajectory, sampled every --dt s, as CSV: header `t,<joint names>`, then one
+    row per sample (s, rad), the motion `Plan.sample` gives (paths, else linear between the steps)."""
+    from regrasp_casadi.files import atomic_write_text
+    from regrasp_casadi.hand import Hand
+
+    out = check_output("--csv", args.csv)
+    plan = _load_plan(args.plan)
+    if not plan.steps:
+        raise _UserError(f"{args.plan}: the plan has no steps, so no motion")
+    names = Hand.from_spec(plan.hand_spec).joint_names
+    t, q, _ = plan.sample(args.dt)
+    if q.shape[1] != len(names):
+        raise _UserError(f"{args.plan}: the steps have {q.shape[1]} joints, the hand {len(names)}")
+    rows = [",".join(["t", *names])]
+    rows += [",".join(format(v, ".10g") for v in (ti, *qi)) for ti, qi in zip(t, q, strict=True)]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out, "\n".join(rows) + "\n")
+    print(f"wrote {out}: {len(t)} samples every {args.dt:g} s ({t[-1]:.2f} s), {len(names)} joints")
+    unpathed = sum(s.path is None for s in plan.steps[1:])
+    flagged = sum(s.path is not None and not s.path.ok for s in plan.steps[1:])
+    if unpathed:
+        print(f"note: {unpathed} steps have no path (a plan of schema version 1 or made without "
+              "trajectories): they move linearly in joint space between the steps")
+    if flagged:
+        print(f"warning: {flagged} paths did not pass the planner's own checks (see `regrasp verify`)")
+    return EXIT_OK
+
+
 def cmd_grasps(args: argparse.Namespace) -> int:
     try:
         from regrasp_casadi import grasp_gen
@@ -410,6 +440,18 @@ def _add_simulate_parser(add) -> None:
     sp.set_defaults(func=cmd_simulate)
 
 
+def _add_export_parser(add) -> None:
+    """The `export` subcommand (``add(name, help)`` makes a subparser)."""
+    sp = add("export", "write a plan's joint trajectory (time stamps and joint angles) as CSV for a robot "
+                       "controller")
+    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
+    sp.add_argument("--csv", required=True, metavar="TRAJ.csv",
+                    help="CSV file to write (t, one column per joint)")
+    sp.add_argument("--dt", type=positive_float, default=0.01, metavar="SECONDS",
+                    help="sampling period, s (100 Hz by default)")
+    sp.set_defaults(func=cmd_export)
+
+
 def _add_bench_parser(add) -> None:
     """The `bench` subcommand (its flags are documented here; `main` passes everything to the script)."""
     sp = add("bench", "run the paper-objects benchmark (benchmarks/paper_objects.py); every argument "
@@ -475,6 +517,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_view)
 
     _add_simulate_parser(add)
+    _add_export_parser(add)
 
     sp = add("grasps", "generate precision grasps on a mesh (or a problem's object)")
     sp.add_argument("source", metavar="MESH_OR_PROBLEM", help="mesh file (.obj, .stl, ...) or problem .yaml")

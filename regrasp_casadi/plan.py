@@ -2,22 +2,28 @@
 
 A `Plan` is what `plan_regrasp` returns: the steps (initial, gaits, reposings, final move), the error
 after every iteration, timing, a status and the specs from which the hand and the object can be rebuilt
-(`regrasp_casadi.problem.plan_models(plan)`). Plans are saved as JSON without loss: floats are written
-with `repr`, so every array is equal to the bit after `Plan.load(plan.save(...))`. The file is strict:
-an unknown field, status, method or step kind, a duplicate key or a non-UTF-8 file is a
-`PlanFormatError` naming the file and the field.
+(`regrasp_casadi.problem.plan_models(plan)`). Each step may carry its motion from the previous step
+(`PlanStep.path`, a `regrasp_casadi.motion.StepPath`); `Plan.sample(dt)` returns the whole motion.
+Plans are saved as JSON without loss: floats are written with `repr`, so every array is equal to the
+bit after `Plan.load(plan.save(...))`. The file is strict: an unknown field, status, method, step kind
+or path phase, a duplicate key or a non-UTF-8 file is a `PlanFormatError` naming the file and field.
 
     >>> plan.save("plan.json")
     >>> assert Plan.load("plan.json") == plan
+    >>> t, q, T_palm_object = plan.sample(0.01)   # (N,) s, (N, n) rad, (N, 4, 4)
 
-Only numpy, the standard library, `regrasp_casadi.errors` and `regrasp_casadi.files` are imported here:
-no hand, object or CasADi code.
+Schema versions: 2 (written) adds `steps[i].path`; files of version 1 (no paths) still load, their
+steps without a path; any other version is a `PlanFormatError` saying which versions are readable.
+
+Only numpy, the standard library, `regrasp_casadi.errors`, `regrasp_casadi.files` and
+`regrasp_casadi.motion` are imported here: no hand, object or CasADi code.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import math
 import pathlib
 from dataclasses import dataclass
@@ -28,6 +34,15 @@ from numpy.typing import NDArray
 
 from regrasp_casadi.errors import PlanFormatError
 from regrasp_casadi.files import atomic_write_text
+from regrasp_casadi.motion import (
+    DEFAULT_MAX_JOINT_SPEED,
+    DEFAULT_MIN_STEP_DURATION,
+    INTERPOLATION,
+    PATH_PHASES,
+    StepPath,
+    join_step_motions,
+    sample_knots,
+)
 
 __all__ = [
     "PlanStep",
@@ -36,14 +51,20 @@ __all__ = [
     "PlanStatus",
     "PlanMethod",
     "SCHEMA_VERSION",
+    "READABLE_SCHEMA_VERSIONS",
     "STEP_KINDS",
     "PLAN_STATUSES",
     "PLAN_METHODS",
     "frozen_array",
 ]
 
-SCHEMA_VERSION = 1
-"""Version of the plan JSON schema written by `Plan.to_dict`; `Plan.from_dict` accepts only this one."""
+SCHEMA_VERSION = 2
+"""Version of the plan JSON schema written by `Plan.to_dict` (2: steps carry their `path`)."""
+
+READABLE_SCHEMA_VERSIONS = (1, 2)
+"""Versions `Plan.from_dict` reads: 1 (no paths: the steps load with `path=None`) and 2."""
+
+_log = logging.getLogger(__name__)
 
 StepKind = Literal["initial", "gait", "repose", "final"]
 """What a step does: the initial grasp, a finger gait (OPT1), an in-grasp reposing (OPT2), a final move."""
@@ -112,6 +133,9 @@ class PlanStep:
     """IPOPT `return_status` of the NLP that produced the step ("" for the initial step)."""
     solve_time: float
     """Wall time of the step's solve, s."""
+    path: StepPath | None = None
+    """The motion from the previous step to this one (None: the initial step, a plan of schema version
+    1, or a plan made without trajectories; `Plan.sample` then moves linearly between the steps)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", frozen_array(self.q, (None,)))
@@ -132,6 +156,7 @@ class PlanStep:
             and _arrays_equal(self.contact_error, other.contact_error)
             and self.solver_status == other.solver_status
             and self.solve_time == other.solve_time
+            and self.path == other.path
         )
 
     __hash__ = None  # type: ignore[assignment]
@@ -152,16 +177,25 @@ class PlanStep:
             "contact_error": self.contact_error.tolist(),
             "solver_status": self.solver_status,
             "solve_time": self.solve_time,
+            "path": None if self.path is None else _path_to_dict(self.path, f"{where}.path"),
         }
 
     @classmethod
-    def from_dict(cls, d: Any, where: str = "step") -> PlanStep:
+    def from_dict(cls, d: Any, where: str = "step", schema_version: int = SCHEMA_VERSION) -> PlanStep:
         """Inverse of `to_dict`; raises `PlanFormatError` naming the field (`where` prefixes it).
 
-        Unknown fields, a missing field and an unknown `kind` are errors.
+        Unknown fields, a missing field and an unknown `kind` are errors. A step of `schema_version` 1
+        has no "path" field (it loads with `path=None`); from version 2 on "path" is required (may be
+        null).
         """
-        d = _require_mapping(d, where, _STEP_FIELDS)
-        return cls(
+        fields = _STEP_FIELDS if schema_version >= 2 else tuple(f for f in _STEP_FIELDS if f != "path")
+        d = _require_mapping(d, where, fields)
+        path = None
+        if schema_version >= 2:
+            if "path" not in d:
+                raise PlanFormatError(f"{where}.path: missing field (null for a step without motion)")
+            path = None if d["path"] is None else _path_from_dict(d["path"], f"{where}.path")
+        step = cls(
             kind=_get_choice(d, "kind", where, STEP_KINDS),
             finger=_get(d, "finger", where, (str, type(None))),
             q=_get_array(d, "q", where, 1),
@@ -170,10 +204,56 @@ class PlanStep:
             contact_error=_get_array(d, "contact_error", where, 1),
             solver_status=_get(d, "solver_status", where, str),
             solve_time=_get_float(d, "solve_time", where),
+            path=path,
         )
+        if path is not None and path.q.shape[1] != step.q.shape[0]:
+            raise PlanFormatError(f"{where}.path.q: expected {step.q.shape[0]} joints per knot (as "
+                                  f"{where}.q), found {path.q.shape[1]}")
+        return step
 
 
 _STEP_FIELDS = tuple(f.name for f in dataclasses.fields(PlanStep))
+_PATH_FIELDS = tuple(f.name for f in dataclasses.fields(StepPath))
+
+
+def _path_to_dict(path: StepPath, where: str) -> dict[str, Any]:
+    """JSON-ready dict of a `StepPath`; `PlanFormatError` for a phase or rule `from_dict` would refuse."""
+    for i, phase in enumerate(path.phases):
+        _check_choice(phase, PATH_PHASES, f"{where}.phases[{i}]")
+    _check_choice(path.interpolation, (INTERPOLATION,), f"{where}.interpolation")
+    return {
+        "t": path.t.tolist(),
+        "q": path.q.tolist(),
+        "T_palm_object": path.T_palm_object.tolist(),
+        "phases": list(path.phases),
+        "ok": path.ok,
+        "detail": path.detail,
+        "metrics": dict(path.metrics),
+        "interpolation": path.interpolation,
+    }
+
+
+def _path_from_dict(d: Any, where: str) -> StepPath:
+    """Inverse of `_path_to_dict`; `PlanFormatError` naming the field."""
+    d = _require_mapping(d, where, _PATH_FIELDS)
+    phases = _get(d, "phases", where, list)
+    for i, phase in enumerate(phases):
+        _check_choice(phase, PATH_PHASES, f"{where}.phases[{i}]")
+    metrics = _get(d, "metrics", where, dict)
+    for k, v in metrics.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise PlanFormatError(f"{where}.metrics.{k}: expected a finite number, found {v!r:.60}")
+    t = _get_array(d, "t", where, 1)
+    if t.size and (t[0] != 0.0 or np.any(np.diff(t) < 0)):
+        raise PlanFormatError(f"{where}.t: expected time stamps from 0, non-decreasing")
+    try:
+        return StepPath(t=t, q=_get_array(d, "q", where, 2),
+                        T_palm_object=_get_array(d, "T_palm_object", where, 3, (None, 4, 4)),
+                        phases=tuple(phases), ok=_get(d, "ok", where, bool),
+                        detail=_get(d, "detail", where, str), metrics=metrics,
+                        interpolation=_get_choice(d, "interpolation", where, (INTERPOLATION,)))
+    except ValueError as e:
+        raise PlanFormatError(f"{where}: {e}") from None
 
 
 # ---------------------------------------------------------------------------- dict field validation
@@ -364,9 +444,33 @@ class Plan:
             lines.append(
                 f"final contact error: avg {np.mean(err) * 1e3:.2f} mm, max {np.max(err) * 1e3:.2f} mm"
             )
+        paths = [(i, s.path) for i, s in enumerate(self.steps) if s.path is not None]
+        if paths:
+            flagged = [f"step {i}" for i, p in paths if not p.ok]
+            lines.append(f"motion: {sum(p.duration for _, p in paths):.2f} s, {len(paths)} paths"
+                         + (f", {len(flagged)} flagged ({', '.join(flagged[:5])})" if flagged else ""))
         if self.timing:
             lines.append("timing: " + ", ".join(f"{k} {v:.3f} s" for k, v in self.timing.items()))
         return "\n".join(lines)
+
+    def sample(self, dt: float = 0.01, max_joint_speed: float = DEFAULT_MAX_JOINT_SPEED,
+               min_step_duration: float = DEFAULT_MIN_STEP_DURATION
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The whole motion of the plan sampled every `dt` s (the end included).
+
+        Each step's `path` is followed by its time stamps and `motion.INTERPOLATION` (linear in joint
+        space and in the object pose between knots). A step without a path (schema version 1, a plan
+        made without trajectories) moves linearly from the previous step, timed by `motion.time_stamps`
+        with `max_joint_speed` (rad/s) and `min_step_duration` (s); a note is logged.
+
+        Returns:
+            t (N,) s from the initial step; q (N, n) rad; T_palm_object (N, 4, 4), palm frame.
+        """
+        t, q, T, unpathed = join_step_motions(self.steps, max_joint_speed, min_step_duration)
+        if unpathed:
+            _log.info("steps %s have no path: moving linearly in joint space and object pose between "
+                      "the steps (%.2f rad/s)", unpathed, max_joint_speed)
+        return sample_knots(t, q, T, dt)
 
     # ------------------------------------------------------------------------------- file format
     def to_dict(self) -> dict[str, Any]:
@@ -400,16 +504,18 @@ class Plan:
     def from_dict(cls, d: Any) -> Plan:
         """Inverse of `to_dict`.
 
+        A file of schema version 1 loads with every `path` None (and is written back as version 2).
+
         Raises:
-            PlanFormatError: wrong or missing `schema_version` (with expected and found), an unknown
+            PlanFormatError: wrong or missing `schema_version` (with readable and found), an unknown
                 field, status, method or step kind, or a missing or malformed field (named, e.g.
                 "steps[3].q").
         """
         w = "plan"
         d = _require_mapping(d, w, _PLAN_FIELDS)
-        _check_schema_version(d)
+        version = _check_schema_version(d)
         steps_raw = _get(d, "steps", w, list)
-        steps = tuple(PlanStep.from_dict(s, f"steps[{i}]") for i, s in enumerate(steps_raw))
+        steps = tuple(PlanStep.from_dict(s, f"steps[{i}]", version) for i, s in enumerate(steps_raw))
         fingers = _get(d, "fingers", w, list)
         if not all(isinstance(f, str) for f in fingers):
             raise PlanFormatError(f"fingers: expected a list of names, found {fingers!r:.60}")
@@ -467,17 +573,19 @@ class Plan:
 _PLAN_FIELDS = tuple(f.name for f in dataclasses.fields(Plan))
 
 
-def _check_schema_version(d: dict) -> None:
+def _check_schema_version(d: dict) -> int:
+    """The file's schema version, one of `READABLE_SCHEMA_VERSIONS`; `PlanFormatError` otherwise."""
+    readable = " or ".join(str(v) for v in READABLE_SCHEMA_VERSIONS)
     if "schema_version" not in d:
-        raise PlanFormatError(
-            f"schema_version: missing field (expected {SCHEMA_VERSION}); not a regrasp plan?"
-        )
+        raise PlanFormatError(f"schema_version: missing field (expected {readable}); not a regrasp plan?")
     version = d["schema_version"]
-    if isinstance(version, bool) or version != SCHEMA_VERSION:
+    if isinstance(version, bool) or not isinstance(version, int) or version not in READABLE_SCHEMA_VERSIONS:
+        newer = isinstance(version, int) and not isinstance(version, bool) and version > SCHEMA_VERSION
         raise PlanFormatError(
-            f"schema_version: expected {SCHEMA_VERSION}, found {version!r} "
-            "(written by another version of regrasp_casadi)"
-        )
+            f"schema_version: expected {readable}, found {version!r} ("
+            + ("written by a newer version of regrasp_casadi: upgrade it to read this plan)" if newer
+               else "written by another version of regrasp_casadi)"))
+    return version
 
 
 # ------------------------------------------------------------------------------------------ JSON text

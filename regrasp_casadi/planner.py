@@ -23,6 +23,7 @@ from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.solver import NLPCache
 from regrasp_casadi.stability import holding_quality, torque_reference
+from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories
 from regrasp_casadi.transforms import rotation_angle
 
 if TYPE_CHECKING:
@@ -81,6 +82,9 @@ class PlannerOptions:
     """OPT1's options (η, β, exact-contact tolerance, ...)."""
     in_grasp: InGraspOptions = field(default_factory=InGraspOptions)
     """OPT2's options (k1, k2, β, trust region, ...)."""
+    trajectories: bool = True
+    """Give every step its motion from the step before (`trajectory.attach_trajectories`: lift-off,
+    transit and touch-down of gaits, reposing paths; β of the finger gait); False: static steps only."""
 
     OVERRIDES: ClassVar[dict[str, tuple[str, ...]]] = {
         "eta": ("finger_gait",),
@@ -405,7 +409,7 @@ def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_star
     if run is not None:
         opts["gait_used"] = list(run.gait)
         opts["solves"] = dict(run.solves)
-    return Plan(steps=tuple(run.steps) if run else (),
+    plan = Plan(steps=tuple(run.steps) if run else (),
                 goal_contacts_object=np.asarray(grasp_goal.contacts_object, dtype=float),
                 goal_T_palm_object=np.asarray(grasp_goal.T_palm_object, dtype=float),
                 fingers=tuple(hand.fingers), hand_spec=hand.spec(), object_spec=dict(obj.spec),
@@ -413,6 +417,9 @@ def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_star
                 iterations=run.iterations if run else 0,
                 iteration_errors=np.asarray(run.errors if run else [], dtype=float), timing=timing,
                 options=opts)
+    if options.trajectories and len(plan.steps) > 1:
+        plan = attach_trajectories(plan, hand, obj, TrajectoryOptions(beta=options.finger_gait.beta))
+    return plan
 
 
 def _pose_distance(T_a: NDArray, T_b: NDArray, obj: ObjectModel) -> float:

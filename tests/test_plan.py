@@ -18,6 +18,7 @@ import pytest
 import regrasp_casadi
 from regrasp_casadi import files
 from regrasp_casadi.errors import PlanFormatError
+from regrasp_casadi.motion import StepPath
 from regrasp_casadi.plan import PLAN_METHODS, PLAN_STATUSES, SCHEMA_VERSION, STEP_KINDS, Plan, PlanStep
 from regrasp_casadi.transforms import make_T, rpy_to_R
 
@@ -49,6 +50,12 @@ def _random_plan(seed: int = 0, n_steps: int = 5) -> Plan:
                 solve_time=float(rng.uniform()) * 1e-3,
             )
         )
+    k = 4
+    steps[1] = replace(steps[1], path=StepPath(
+        t=np.concatenate([[0.0], np.cumsum(rng.uniform(size=k - 1))]), q=rng.normal(size=(k, 16)),
+        T_palm_object=np.stack([make_T(rpy_to_R(*rng.normal(size=3)), rng.normal(size=3)) for _ in range(k)]),
+        phases=("lift", "transit", "touch_down"), ok=False, detail="a reason",
+        metrics={"lift_height": float(rng.uniform()), "min_clearance": -1e-300}))
     return Plan(
         steps=tuple(steps),
         goal_contacts_object=rng.normal(size=(4, 3)) * 0.05,
@@ -76,6 +83,10 @@ def _assert_bitwise_equal(a: Plan, b: Plan) -> None:
             assert x.tobytes() == y.tobytes(), name
         assert (sa.kind, sa.finger, sa.solver_status, sa.solve_time) == (
             sb.kind, sb.finger, sb.solver_status, sb.solve_time)
+        assert (sa.path is None) == (sb.path is None)
+        if sa.path is not None:
+            for name in ("t", "q", "T_palm_object"):
+                assert getattr(sa.path, name).tobytes() == getattr(sb.path, name).tobytes(), name
     for name in ("goal_contacts_object", "goal_T_palm_object", "iteration_errors"):
         assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
     assert a == b
@@ -103,18 +114,19 @@ def test_plan_equality_detects_one_bit():
     assert Plan.from_dict(d) != plan
 
 
-@pytest.mark.parametrize("version", [0, 2, "1", True])
+@pytest.mark.parametrize("version", [0, 3, "1", "2", True, 2.0])
 def test_wrong_schema_version(version):
     d = _random_plan().to_dict()
     d["schema_version"] = version
-    with pytest.raises(PlanFormatError, match=r"schema_version: expected 1, found"):
+    with pytest.raises(PlanFormatError, match=r"schema_version: expected 1 or 2, found"):
         Plan.from_dict(d)
 
 
 def test_missing_schema_version_names_expected():
     d = _random_plan().to_dict()
     del d["schema_version"]
-    with pytest.raises(PlanFormatError, match=rf"schema_version: missing.*expected {SCHEMA_VERSION}"):
+    assert SCHEMA_VERSION == 2
+    with pytest.raises(PlanFormatError, match=r"schema_version: missing.*expected 1 or 2"):
         Plan.from_dict(d)
 
 
@@ -216,12 +228,19 @@ def test_every_status_and_method_round_trips(status, method, tmp_path):
     assert again == plan
 
 
-def test_plan_written_before_the_split_loads_and_saves_to_the_same_bytes(tmp_path):
+def test_plan_written_before_the_split_loads_and_saves_as_version_2_losing_nothing(tmp_path):
     plan = Plan.load(GOLDEN)
     assert (plan.status, plan.method, plan.iterations) == ("iteration_limit", "svd", 1)
     assert [s.kind for s in plan.steps] == ["initial", "gait", "gait", "gait", "gait", "repose"]
     assert [s.finger for s in plan.steps[1:5]] == ["index", "middle", "ring", "thumb"]
-    assert plan.save(tmp_path / "again.json").read_bytes() == GOLDEN.read_bytes()
+    assert all(s.path is None for s in plan.steps)
+    saved = json.loads(plan.save(tmp_path / "again.json").read_text(encoding="utf-8"))
+    # version 2 = version 1 plus a null path per step; every other value is the golden file's
+    assert saved["schema_version"] == 2 and [s.pop("path") for s in saved["steps"]] == [None] * 6
+    golden = _golden_doc()
+    del saved["schema_version"], golden["schema_version"]
+    assert saved == golden
+    assert Plan.load(tmp_path / "again.json") == plan
 
 
 # ------------------------------------------------------------------------------ strict reading
@@ -348,4 +367,4 @@ def test_importing_and_using_plan_loads_no_model_code():
                   "regrasp_casadi.problem", "regrasp_casadi.verify"}
     assert loaded & model_code == set()
     assert {m for m in loaded if m.startswith("regrasp_casadi.")} == {
-        "regrasp_casadi.errors", "regrasp_casadi.files", "regrasp_casadi.plan"}
+        "regrasp_casadi.errors", "regrasp_casadi.files", "regrasp_casadi.motion", "regrasp_casadi.plan"}

@@ -1,0 +1,544 @@
+"""Trajectories between the steps of a plan: the motion a robot executes (issue 15, items 2–4).
+
+A plan's steps are static grasps. This module turns each pair of consecutive steps into a `StepPath`
+(`regrasp_casadi.motion`): knots of joint angles and object pose, time stamps from a joint speed limit,
+linear interpolation between knots (`motion.INTERPOLATION`). No NLP: numeric forward kinematics and tip
+Jacobians of the `Hand`, damped least-squares IK within the joint limits, and the object's EXACT mesh
+distance for the checks.
+
+* **Gait** (one finger r moves, the object stays): lift-off of r's tip centre along its contact normal
+  by `lift_height`, a transit linear in joint space between the lifted start and the lifted point above
+  the new contact (through a via point raised above the object when a sample comes closer than β),
+  touch-down along the new contact's normal. Only r's joints change. The lift and touch-down knots are IK
+  solutions (the touch-down is the lift from the new contact, reversed, so it ends exactly at the step).
+* **Reposing** (repose and final steps; the object moves with the hand): the object pose is interpolated
+  from step A to step B (translation linear, rotation geodesic: `transforms.interpolate_pose`), the tip
+  centres held in the object frame (interpolated linearly from A's to B's, which differ by OPT2's slip)
+  and mapped by that pose, and every knot is an IK solution for all fingers, warm started from the
+  previous knot and pulled towards the joint-space interpolation in the null space.
+* **Knots** are placed so that no point of the hand moves more than `max_point_step` between two knots:
+  a sphere of radius ρ whose centre moves by Δc on a chain whose joints move by Δq moves no point more
+  than ‖Δc‖ + ρ·Σ|Δq_j|; segments over the bound are split (IK knots, or linear subdivisions in a
+  transit) until none is.
+* **Checks** at every knot and every segment midpoint (the interpolation rule evaluated there): joint
+  limits, the moving finger's spheres ≥ β in a transit and not in the object during lift/touch-down;
+  in a reposing the tips within `surface_tol` of the surface, the contacts within `max_slip` of step A's,
+  every non-tip sphere (palm included) outside the object. A failure (an IK that cannot reach a knot
+  within the limits, a check) is reported in the path (`ok` False and `detail`), never hidden.
+
+    >>> plan = attach_trajectories(plan, hand, obj)          # what plan_regrasp does at the end
+    >>> t, q, T_palm_object = plan.sample(0.01)
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from regrasp_casadi.motion import (
+    DEFAULT_MAX_JOINT_SPEED,
+    DEFAULT_MIN_STEP_DURATION,
+    StepPath,
+    interpolate_knots,
+    time_stamps,
+)
+from regrasp_casadi.transforms import interpolate_pose, inv_T, transform_points
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
+    from regrasp_casadi.plan import Plan, PlanStep
+
+__all__ = ["TrajectoryOptions", "plan_trajectories", "attach_trajectories"]
+
+_log = logging.getLogger(__name__)
+
+_IK_CONVERGED = 1e-7
+"""IK iterates until every (weighted) tip error is below this, m (or until it stops making progress)."""
+
+_RISE_TOL = 0.1
+"""A lift knot may fall short of its height along the normal by this fraction (joint limits)."""
+
+_SIDEWAYS_WEIGHT = 0.1
+"""Weight of the sideways error of a lift-off against its rise along the normal (IK)."""
+
+_NEAR = 0.003
+"""Margin beyond a sphere's radius within which the clearance is computed exactly, m (farther, the
+convex pieces' lower bound is enough: every threshold checked here is β or less)."""
+
+Curve = Callable[[float, "NDArray[np.float64] | None"], "tuple[NDArray[np.float64], str]"]
+"""s ∈ [0, 1], warm-start q (or None) -> (q (n,), why): a phase of a path; `why` is "" on success."""
+
+
+@dataclass(frozen=True)
+class TrajectoryOptions:
+    """Options of the trajectories (SI units)."""
+
+    lift_height: float = 0.005
+    """Lift-off and touch-down distance of a gait's tip centre along the contact normal, m."""
+    beta: float = 0.001
+    """β, clearance of every sphere of the moving finger from the object during a transit, m."""
+    via_heights: tuple[float, ...] = (0.005, 0.01, 0.02, 0.04)
+    """Heights above the lifted points' midpoint of the via points tried when a transit is too close, m."""
+    max_point_step: float = 0.001
+    """No point of the hand moves more than this between two knots, m."""
+    max_joint_speed: float = DEFAULT_MAX_JOINT_SPEED
+    """Largest joint speed of the time stamps, rad/s."""
+    min_step_duration: float = DEFAULT_MIN_STEP_DURATION
+    """Shortest duration of one step's motion, s."""
+    surface_tol: float = 5e-4
+    """Reposing: largest |exact distance − tip radius| of a tip centre, m."""
+    max_slip: float = 1e-3
+    """Reposing: largest distance of a contact from where it was on the object at the step before, m."""
+    max_lift_angle: float = math.radians(45.0)
+    """Lift-off and touch-down: largest angle between the contact normal and the tip centre's
+    displacement from its contact, rad. The tip rises along the normal; where the joint limits keep it
+    off that line, it leans as little as they allow, and at most this far (45°: it always moves away
+    from the surface at least as fast as along it)."""
+    ik_tol: float = 5e-4
+    """Reposing: largest distance of a tip centre from where the object pose puts it at a knot, m; a
+    knot the joint limits keep farther is reported (the largest distance is in the metrics)."""
+    ik_max_iters: int = 40
+    """IK: damped least-squares iterations per knot."""
+    ik_damping: float = 1e-4
+    """IK: damping λ of (J Jᵀ + λ² I), m."""
+    max_refinements: int = 6
+    """Rounds of knot insertion for the `max_point_step` bound."""
+
+
+# -------------------------------------------------------------------------------------------- context
+class _Context:
+    """The hand, the object, the options and the hand's sphere table (built once per plan)."""
+
+    def __init__(self, hand: Hand, obj: ObjectModel, options: TrajectoryOptions):
+        self.hand, self.obj, self.options = hand, obj, options
+        labels = hand.sphere_labels(None, include_tip=True)
+        by_label = {s.label: s for s in hand.spheres}
+        self.sphere_finger = [by_label[label].finger for label in labels]
+        """Finger of every sphere of `sphere_centers(q, None, include_tip=True)` (None: palm)."""
+        self.is_tip = np.array([by_label[label].is_tip for label in labels])
+        self.radii = np.asarray(hand.sphere_radii(None, include_tip=True), dtype=float)
+        self.chain = np.zeros((len(labels), hand.n_joints))
+        """(S, n) 1 where a joint moves the sphere (the joints of its finger)."""
+        for k, f in enumerate(self.sphere_finger):
+            if f is not None:
+                self.chain[k, hand.finger_joints[f]] = 1.0
+        self.tip_index = {f: int(np.flatnonzero(self.is_tip & (np.array(self.sphere_finger, object) == f))[0])
+                          for f in hand.fingers}
+        self.finger_joints = np.unique(np.concatenate([hand.finger_joints[f] for f in hand.fingers]))
+        self._centers: dict[bytes, NDArray[np.float64]] = {}
+
+    def centers(self, Q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(k, S, 3) sphere centres, palm frame, m, for knots Q (k, n) (remembered per q for this plan)."""
+        out = []
+        for q in Q:
+            key = q.tobytes()
+            c = self._centers.get(key)
+            if c is None:
+                c = self._centers[key] = self.hand.sphere_centers(q, None, include_tip=True)
+            out.append(c)
+        return np.stack(out)
+
+    def segment_motion(self, Q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(k − 1,) bound on how far any point of the hand moves between consecutive knots Q (k, n), m."""
+        C = self.centers(Q)
+        dc = np.linalg.norm(np.diff(C, axis=0), axis=2)
+        rotation = np.abs(np.diff(Q, axis=0)) @ self.chain.T  # Σ|Δq_j| over each sphere's chain
+        return np.max(dc + self.radii[None, :] * rotation, axis=1)
+
+    def clearance(self, Q: NDArray[np.float64], Ts: NDArray[np.float64], spheres: NDArray[np.int64]
+                  ) -> NDArray[np.float64]:
+        """(k, len(spheres)) exact sd(centre) − radius of the chosen spheres at knots (Q, Ts), m."""
+        p_object = _to_object(Ts, self.centers(Q)[:, spheres]).reshape(-1, 3)
+        r = np.tile(self.radii[spheres], len(Q))
+        d = np.asarray(self.obj.near_signed_distance(p_object, r + _NEAR), dtype=float)
+        return (d - r).reshape(len(Q), len(spheres))
+
+
+def _to_object(Ts: NDArray, p_palm: NDArray) -> NDArray[np.float64]:
+    """Points p_palm (k, s, 3), palm frame, in the object frame of the poses Ts (k, 4, 4): (k, s, 3)."""
+    return np.einsum("kij,ksi->ksj", Ts[:, :3, :3], p_palm - Ts[:, None, :3, 3])
+
+
+# ------------------------------------------------------------------------------------------------- IK
+def _ik_step(J: NDArray, e: NDArray, dq_null: NDArray, at_lower: NDArray, at_upper: NDArray,
+             damping: float) -> NDArray:
+    """Damped least-squares step of the joints (columns of J) towards the tip error e, plus the null-space
+    part of dq_null; joints at a limit that the step would push out are frozen (re-solved without them)."""
+    free = np.ones(J.shape[1], dtype=bool)
+    dq = np.zeros(J.shape[1])
+    damping_matrix = damping**2 * np.eye(J.shape[0])
+    for _ in range(3):
+        Jf = J[:, free]
+        null = dq_null[free]
+        A = Jf @ Jf.T + damping_matrix
+        x = np.linalg.solve(A, np.column_stack([e, Jf @ null]))
+        dq = np.zeros(J.shape[1])
+        dq[free] = Jf.T @ (x[:, 0] - x[:, 1]) + null
+        out = free & ((at_lower & (dq < 0)) | (at_upper & (dq > 0)))
+        if not out.any():
+            break
+        free &= ~out
+        dq[~free] = 0.0
+    return dq
+
+
+def _ik(ctx: _Context, q_start: NDArray, fingers: Sequence[str], p_palm_targets: NDArray, joints: NDArray,
+        q_ref: NDArray, weight: NDArray | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Joint angles whose tip centres of `fingers` reach `p_palm_targets` (len(fingers), 3), palm frame,
+    as closely as the joint limits allow.
+
+    Only `joints` (indices into q) move, within the hand's limits; q_start (n,) is the first iterate and
+    q_ref (n,) the posture the null space is pulled to. `weight` (3, 3) weighs every tip's error (the
+    directions that matter most; None: I). Iterates until the largest weighted error is below
+    `_IK_CONVERGED`, stops making progress, or `ik_max_iters`. Returns q and the tip errors
+    (len(fingers), 3), m.
+    """
+    hand, o = ctx.hand, ctx.options
+    rows = [hand.fingers.index(f) for f in fingers]
+    W = np.eye(3) if weight is None else weight
+    lo, hi = hand.q_lower[joints], hand.q_upper[joints]
+    q = np.clip(q_start, hand.q_lower, hand.q_upper)
+    e = p_palm_targets - hand.tip_positions(q)[rows]
+    err = float(np.max(np.abs(e @ W.T)))
+    for _ in range(o.ik_max_iters):
+        if err <= _IK_CONVERGED:
+            break
+        J = np.vstack([W @ hand.tip_jacobian(q, f)[:, joints] for f in fingers])
+        qj = q[joints]
+        dq = _ik_step(J, (e @ W.T).ravel(), q_ref[joints] - qj, qj <= lo + 1e-12, qj >= hi - 1e-12,
+                      o.ik_damping)
+        dq *= min(1.0, 0.2 / max(float(np.max(np.abs(dq))), 1e-12))  # at most 0.2 rad per iteration
+        q_new = q.copy()
+        q_new[joints] = np.clip(qj + dq, lo, hi)
+        e_new = p_palm_targets - hand.tip_positions(q_new)[rows]
+        err_new = float(np.max(np.abs(e_new @ W.T)))
+        if err_new >= err:
+            break  # no progress (joint limits, or the null-space pull at convergence): keep q
+        stalled = err_new > 0.8 * err
+        q, e, err = q_new, e_new, err_new
+        if stalled:
+            break
+    return q, e
+
+
+def _held_joints(ctx: _Context, q: NDArray, joints: NDArray) -> str:
+    """" (joints at their limits: a, b)" for the joints of `joints` at a limit at q, else ""."""
+    hand = ctx.hand
+    held = [hand.joint_names[j] for j in joints
+            if q[j] <= hand.q_lower[j] + 1e-9 or q[j] >= hand.q_upper[j] - 1e-9]
+    return f" (joints at their limits: {', '.join(held)})" if held else ""
+
+
+# ---------------------------------------------------------------------------------------------- knots
+def _knots(ctx: _Context, curve: Curve, n_start: int) -> tuple[NDArray[np.float64], NDArray[np.float64], str]:
+    """Knots of a curve from s = 0 to s = 1, dense enough for `max_point_step`.
+
+    Starts with `n_start` evenly spaced values of s; splits every segment over the bound into
+    ceil(motion / max_point_step) parts (solved by `curve`, warm started from the knot before) until none
+    is over it. A knot the curve cannot solve keeps the curve's best effort and is reported.
+
+    Returns:
+        s (k,), knots (k, n), and why: "" or where the curve failed / that the bound was not reached.
+    """
+    step = ctx.options.max_point_step
+    failures: list[str] = []
+
+    def solve(s: float, warm: NDArray | None) -> NDArray:
+        q, why = curve(s, warm)
+        if why:
+            failures.append(f"s = {s:.3f}: {why}")
+        return q
+
+    s_knots = list(np.linspace(0.0, 1.0, max(2, n_start)))
+    Q: list[NDArray] = []
+    for s in s_knots:
+        Q.append(solve(s, Q[-1] if Q else None))
+    motion = ctx.segment_motion(np.array(Q))
+    for _ in range(ctx.options.max_refinements):
+        if np.all(motion <= step):
+            break
+        s_new, Q_new = [s_knots[0]], [Q[0]]
+        for i, m in enumerate(motion):
+            parts = int(math.ceil(m / step)) if m > step else 1
+            for j in range(1, parts):
+                s = s_knots[i] + (s_knots[i + 1] - s_knots[i]) * j / parts
+                s_new.append(s)
+                Q_new.append(solve(s, Q_new[-1]))
+            s_new.append(s_knots[i + 1])
+            Q_new.append(Q[i + 1])
+        s_knots, Q = s_new, Q_new
+        motion = ctx.segment_motion(np.array(Q))
+    why = ""
+    if failures:
+        why = f"{len(failures)} knot{'s' if len(failures) > 1 else ''} not reached, first at {failures[0]}"
+    elif np.max(motion) > step:
+        why = (f"knots {np.max(motion) * 1e3:.2f} mm apart > {step * 1e3:.2f} mm after "
+               f"{ctx.options.max_refinements} refinements")
+    return np.array(s_knots), np.array(Q), why
+
+
+def _n_start(ctx: _Context, q_a: NDArray, q_b: NDArray) -> int:
+    """Number of knots of a first grid between q_a and q_b (from the motion of their chord)."""
+    return int(math.ceil(float(ctx.segment_motion(np.stack([q_a, q_b]))[0]) / ctx.options.max_point_step)) + 1
+
+
+def _linear(q_a: NDArray, q_b: NDArray) -> Curve:
+    return lambda s, _warm: (q_a + s * (q_b - q_a), "")
+
+
+def _evaluation_points(Q: NDArray, Ts: NDArray) -> tuple[NDArray, NDArray, NDArray[np.int64]]:
+    """Knots and segment midpoints by the interpolation rule: q (2k − 1, n), T (2k − 1, 4, 4) and the
+    segment (2k − 1,) each point belongs to (the last knot to the last segment)."""
+    k = len(Q)
+    u = np.arange(2 * k - 1) / 2.0
+    q, T = interpolate_knots(np.arange(k, dtype=float), Q, Ts, u)
+    return q, T, np.minimum(np.floor(u).astype(np.int64), k - 2)
+
+
+def _timed(ctx: _Context, Q: NDArray, Ts: NDArray, phases: list[str], problems: list[str],
+           metrics: dict[str, float]) -> StepPath:
+    o = ctx.options
+    return StepPath(t=time_stamps(Q, o.max_joint_speed, o.min_step_duration), q=Q, T_palm_object=Ts,
+                    phases=tuple(phases), ok=not problems, detail="; ".join(problems), metrics=metrics)
+
+
+def _limit_problems(ctx: _Context, Q: NDArray) -> list[str]:
+    bad = [v for q in Q for v in ctx.hand.check_limits(q, 1e-9)]
+    return [f"joint {bad[0][0]} = {bad[0][1]:.4f} rad outside its limits"] if bad else []
+
+
+# ----------------------------------------------------------------------------------------------- gait
+def _contact_normal_palm(ctx: _Context, q: NDArray, T: NDArray, finger: str) -> NDArray[np.float64]:
+    """(3,) unit outward normal at the finger's contact, palm frame: from the exact closest point to the
+    tip centre (the direction in which the tip's distance grows fastest)."""
+    p_object = transform_points(inv_T(T), ctx.hand.tip_positions(q)[[ctx.hand.fingers.index(finger)]])
+    closest, _ = ctx.obj.closest_points(p_object)
+    n = p_object[0] - closest[0]
+    if np.linalg.norm(n) < 1e-9:  # a point tip on the surface
+        n = np.asarray(ctx.obj.surface_normals(p_object), dtype=float)[0]
+    return T[:3, :3] @ (n / np.linalg.norm(n))
+
+
+def _lift(ctx: _Context, q0: NDArray, finger: str, n_palm: NDArray) -> tuple[NDArray[np.float64], str]:
+    """Knots (k, n) lifting the finger's tip centre from where it is at q0 by `lift_height` along n_palm."""
+    hand, h = ctx.hand, ctx.options.lift_height
+    p0 = hand.tip_positions(q0)[hand.fingers.index(finger)]
+    joints = hand.finger_joints[finger]
+
+    along = np.outer(n_palm, n_palm)
+    weight = along + _SIDEWAYS_WEIGHT * (np.eye(3) - along)  # rise first, then stay on the line
+
+    def curve(s: float, warm: NDArray | None) -> tuple[NDArray, str]:
+        if s == 0.0:
+            return q0, ""
+        target = p0 + s * h * n_palm
+        q, e = _ik(ctx, q0 if warm is None else warm, [finger], target[None], joints, q0, weight)
+        short = abs(float(e[0] @ n_palm))
+        angle = _lift_angle(e[0], s * h, n_palm)
+        if short <= _RISE_TOL * s * h and angle <= ctx.options.max_lift_angle:
+            return q, ""
+        return q, (f"the tip is {short * 1e3:.3f} mm short of its height, {np.degrees(angle):.1f}° off the "
+                   f"normal{_held_joints(ctx, q, joints)}")
+
+    _, Q, why = _knots(ctx, curve, int(math.ceil(h / ctx.options.max_point_step)) + 1)
+    return Q, why
+
+
+def _lift_angle(e: NDArray, rise: float, n: NDArray) -> float:
+    """Angle (rad) between the contact normal n and a lifted tip's displacement, from its error e (3,) to
+    the point `rise` m up the normal."""
+    sideways = float(np.linalg.norm(e - (e @ n) * n))
+    return math.atan2(sideways, max(rise - float(e @ n), 1e-12))
+
+
+def _max_lean(ctx: _Context, knots: NDArray, finger: str, n: NDArray) -> float:
+    """Largest angle (rad) between n and the finger's tip displacement from knots[0] at knots[1:]."""
+    r = ctx.hand.fingers.index(finger)
+    d = np.array([ctx.hand.tip_positions(q)[r] for q in knots[1:]]) - ctx.hand.tip_positions(knots[0])[r]
+    along = d @ n
+    sideways = np.linalg.norm(d - along[:, None] * n[None], axis=1)
+    return float(np.max(np.arctan2(sideways, np.maximum(along, 1e-12)), initial=0.0))
+
+
+def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDArray, T: NDArray
+             ) -> tuple[NDArray[np.float64], float, str]:
+    """Transit knots (k, n) from q_a to q_b, linear in joint space, directly or through one via point
+    raised by `via_heights` along n_mid (palm frame); the first whose finger spheres keep ≥ β, else the
+    one with the largest clearance. Returns (knots, min clearance m, why)."""
+    hand, o = ctx.hand, ctx.options
+    spheres = np.flatnonzero(np.array(ctx.sphere_finger, object) == finger)
+    r = hand.fingers.index(finger)
+    p_mid = 0.5 * (hand.tip_positions(q_a)[r] + hand.tip_positions(q_b)[r])
+    q_mid = 0.5 * (q_a + q_b)
+    best: tuple[NDArray, float, str] | None = None
+    for height in (None, *o.via_heights):
+        waypoints = [q_a, q_b]
+        if height is not None:
+            via, _ = _ik(ctx, q_mid, [finger], (p_mid + height * n_mid)[None], hand.finger_joints[finger],
+                         q_mid)  # as high as the joint limits allow: the clearance judges it
+            waypoints = [q_a, via, q_b]
+        legs = [_knots(ctx, _linear(a, b), _n_start(ctx, a, b))[1:]
+                for a, b in zip(waypoints, waypoints[1:], strict=False)]
+        Q = np.concatenate([legs[0][0]] + [leg[0][1:] for leg in legs[1:]])
+        q_eval, _, _ = _evaluation_points(Q, np.repeat(T[None], len(Q), axis=0))
+        clear = float(np.min(ctx.clearance(q_eval, np.repeat(T[None], len(q_eval), axis=0), spheres)))
+        why = "; ".join(w for _, w in legs if w)
+        if best is None or clear > best[1]:
+            best = (Q, clear, why)
+        if clear >= o.beta:
+            return Q, clear, why
+    assert best is not None
+    return best[0], best[1], "; ".join(w for w in (best[2], f"transit clearance {best[1] * 1e3:.3f} mm "
+                                                   f"< β = {o.beta * 1e3:.3f} mm") if w)
+
+
+def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
+    """The path of gait step b from step a: lift-off, transit, touch-down of finger `b.finger`.
+
+    Metrics (m; angles rad): "lift_height" (tip-centre rise of the lift), "max_lift_angle" (lean of the
+    lift-off and touch-down from their normals), "min_transit_clearance" (the finger's
+    spheres in the transit), "min_clearance" (its non-tip spheres over the whole path), "min_tip_clearance"
+    (its tip during lift and touch-down: ≥ −surface_tol), "max_point_step".
+    """
+    hand, o, finger = ctx.hand, ctx.options, str(b.finger)
+    T = np.asarray(b.T_palm_object, dtype=float)
+    n_a = _contact_normal_palm(ctx, a.q, T, finger)
+    n_b = _contact_normal_palm(ctx, b.q, T, finger)
+    lift, why_a = _lift(ctx, np.asarray(a.q, dtype=float), finger, n_a)
+    down, why_b = _lift(ctx, np.asarray(b.q, dtype=float), finger, n_b)
+    problems = [f"lift-off {w}" for w in [why_a] if w] + [f"touch-down {w}" for w in [why_b] if w]
+    n_mid = n_a + n_b
+    n_mid = n_mid / np.linalg.norm(n_mid) if np.linalg.norm(n_mid) > 0.3 else n_a
+    transit, min_transit, why_t = _transit(ctx, lift[-1], down[-1], finger, n_mid, T)
+    problems += [why_t] if why_t else []
+    Q = np.concatenate([lift, transit[1:], down[::-1][1:]])
+    phases = ["lift"] * (len(lift) - 1) + ["transit"] * (len(transit) - 1) + ["touch_down"] * (len(down) - 1)
+    Ts = np.repeat(T[None], len(Q), axis=0)
+    q_eval, T_eval, segment = _evaluation_points(Q, Ts)
+    mine = np.flatnonzero(np.array(ctx.sphere_finger, object) == finger)
+    clear = ctx.clearance(q_eval, T_eval, mine)
+    tip_col = int(np.flatnonzero(mine == ctx.tip_index[finger])[0])
+    on_contact = np.isin(np.array(phases)[segment], ("lift", "touch_down"))
+    non_tip = np.delete(clear, tip_col, axis=1)
+    min_clear = float(np.min(non_tip)) if non_tip.size else math.inf
+    min_tip = float(np.min(clear[on_contact, tip_col])) if on_contact.any() else math.inf
+    if min_clear < 0.0:
+        problems.append(f"a sphere of the {finger} finger is {-min_clear * 1e3:.3f} mm inside the object")
+    if min_tip < -o.surface_tol:
+        problems.append(f"the {finger} tip sinks {-min_tip * 1e3:.3f} mm into the object")
+    problems += _limit_problems(ctx, Q)
+    r = hand.fingers.index(finger)
+    rise = float(np.dot(hand.tip_positions(lift[-1])[r] - hand.tip_positions(lift[0])[r], n_a))
+    lean = max(_max_lean(ctx, lift, finger, n_a), _max_lean(ctx, down, finger, n_b))
+    metrics = {"lift_height": rise, "max_lift_angle": lean, "min_transit_clearance": min_transit,
+               "min_clearance": min_clear, "min_tip_clearance": min_tip,
+               "max_point_step": float(np.max(ctx.segment_motion(Q)))}
+    return _timed(ctx, Q, Ts, phases, problems, {k: v for k, v in metrics.items() if math.isfinite(v)})
+
+
+# ------------------------------------------------------------------------------------------- reposing
+def _repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
+    """The path of reposing (or final) step b from step a: the object moves, the contacts stay.
+
+    Metrics (m): "max_surface_error" (|sd − tip radius| of the tips), "max_slip" (contacts from step a's),
+    "max_ik_error" (tips from their targets at the knots), "min_clearance" (every non-tip sphere, palm
+    included), "max_point_step".
+    """
+    hand, o = ctx.hand, ctx.options
+    q_a, q_b = np.asarray(a.q, dtype=float), np.asarray(b.q, dtype=float)
+    T_a, T_b = np.asarray(a.T_palm_object, dtype=float), np.asarray(b.T_palm_object, dtype=float)
+    tips_a = transform_points(inv_T(T_a), hand.tip_positions(q_a))
+    tips_b = transform_points(inv_T(T_b), hand.tip_positions(q_b))
+    fingers = list(hand.fingers)
+    ik_error = [0.0]  # the largest tip error of the IK knots, m
+
+    def pose(s: float) -> NDArray:
+        return T_a if s == 0.0 else T_b if s == 1.0 else interpolate_pose(T_a, T_b, s)
+
+    def curve(s: float, warm: NDArray | None) -> tuple[NDArray, str]:
+        if s in (0.0, 1.0):
+            return (q_a if s == 0.0 else q_b), ""
+        targets = transform_points(pose(s), (1.0 - s) * tips_a + s * tips_b)
+        q_lin = (1.0 - s) * q_a + s * q_b
+        q, e = _ik(ctx, q_lin if warm is None else warm, fingers, targets, ctx.finger_joints, q_lin)
+        err = float(np.max(np.linalg.norm(e, axis=1)))
+        ik_error[0] = max(ik_error[0], err)
+        if err <= o.ik_tol:
+            return q, ""
+        return q, f"a tip is {err * 1e3:.4f} mm from its target{_held_joints(ctx, q, ctx.finger_joints)}"
+
+    s_knots, Q, why = _knots(ctx, curve, _n_start(ctx, q_a, q_b))
+    problems = [f"IK: {why}"] if why else []
+    Ts = np.stack([pose(float(s)) for s in s_knots])
+    q_eval, T_eval, _ = _evaluation_points(Q, Ts)
+    tips = np.array([ctx.tip_index[f] for f in fingers])
+    p_object = _to_object(T_eval, ctx.centers(q_eval)[:, tips])
+    closest, sd = ctx.obj.closest_points(p_object.reshape(-1, 3))
+    surface = np.abs(sd.reshape(len(q_eval), -1) - ctx.radii[tips][None])
+    slip = np.linalg.norm(closest.reshape(len(q_eval), -1, 3) - np.asarray(a.contacts_object)[None], axis=2)
+    others = np.flatnonzero(~ctx.is_tip)
+    clear = ctx.clearance(q_eval, T_eval, others) if others.size else np.full((1, 1), math.inf)
+    metrics = {"max_surface_error": float(np.max(surface)), "max_slip": float(np.max(slip)),
+               "max_ik_error": ik_error[0],
+               "min_clearance": float(np.min(clear)), "max_point_step": float(np.max(ctx.segment_motion(Q)))}
+    if metrics["max_surface_error"] > o.surface_tol:
+        problems.append(f"a tip is {metrics['max_surface_error'] * 1e3:.3f} mm off the surface "
+                        f"(> {o.surface_tol * 1e3:.2f} mm)")
+    if metrics["max_slip"] > o.max_slip:
+        problems.append(f"a contact slips {metrics['max_slip'] * 1e3:.3f} mm (> {o.max_slip * 1e3:.2f} mm)")
+    if metrics["min_clearance"] < 0.0:
+        problems.append(f"a non-tip sphere is {-metrics['min_clearance'] * 1e3:.3f} mm inside the object")
+    problems += _limit_problems(ctx, Q)
+    return _timed(ctx, Q, Ts, ["repose"] * (len(Q) - 1), problems,
+                  {k: v for k, v in metrics.items() if math.isfinite(v)})
+
+
+# --------------------------------------------------------------------------------------------- public
+def plan_trajectories(plan_steps: Sequence[PlanStep], hand: Hand, obj: ObjectModel,
+                      options: TrajectoryOptions | None = None) -> list[StepPath | None]:
+    """The path of every step from the step before (None for the initial step and unknown kinds).
+
+    Gait steps get a lift-off / transit / touch-down path, repose and final steps a reposing path (see
+    the module docstring). A path whose checks fail has `ok` False and says why in `detail`.
+
+    Args:
+        plan_steps: the steps of a plan, in order (`Plan.steps`).
+        hand, obj: the models the plan was made with.
+        options: `TrajectoryOptions` (default: issue 15's values).
+    """
+    ctx = _Context(hand, obj, options or TrajectoryOptions())
+    paths: list[StepPath | None] = [None]
+    for a, b in zip(plan_steps[:-1], plan_steps[1:], strict=True):
+        if b.kind == "gait" and b.finger in hand.fingers:
+            paths.append(_gait_path(ctx, a, b))
+        elif b.kind in ("repose", "final"):
+            paths.append(_repose_path(ctx, a, b))
+        else:
+            paths.append(None)
+    flagged = [i for i, p in enumerate(paths) if p is not None and not p.ok]
+    if flagged:
+        _log.info("%d of %d paths failed their checks (steps %s)", len(flagged), len(paths) - 1, flagged)
+    return paths[: len(plan_steps)]
+
+
+def attach_trajectories(plan: Plan, hand: Hand, obj: ObjectModel,
+                        options: TrajectoryOptions | None = None) -> Plan:
+    """`plan` with every step's `path` (`plan_trajectories`), the options used in
+    `plan.options["trajectory"]` and the time spent in `plan.timing["trajectories"]` (added to "total")."""
+    options = options or TrajectoryOptions()
+    t0 = time.perf_counter()
+    paths = plan_trajectories(plan.steps, hand, obj, options)
+    elapsed = time.perf_counter() - t0
+    steps = tuple(step if path is None else replace(step, path=path)
+                  for step, path in zip(plan.steps, paths, strict=True))
+    timing = {**plan.timing, "trajectories": elapsed, "total": plan.timing.get("total", 0.0) + elapsed}
+    recorded = {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(options).items()}
+    return replace(plan, steps=steps, timing=timing, options={**plan.options, "trajectory": recorded})
