@@ -69,6 +69,9 @@ _RISE_TOL = 0.1
 _SIDEWAYS_WEIGHT = 0.1
 """Weight of the sideways error of a lift-off against its rise along the normal (IK)."""
 
+_COARSE_SPACING = 0.008
+"""A reposing's first IK knots: one per this much motion of the hand's points, m (then bisection)."""
+
 _NEAR = 0.003
 """Margin beyond a sphere's radius within which the clearance is computed exactly, m (farther, the
 convex pieces' lower bound is enough: every threshold checked here is β or less)."""
@@ -109,7 +112,10 @@ class TrajectoryOptions:
     """IK: damped least-squares iterations per knot."""
     ik_damping: float = 1e-4
     """IK: damping λ of (J Jᵀ + λ² I), m."""
-    max_refinements: int = 6
+    max_interpolation_error: float = 2e-5
+    """Between two IK knots the joint-space interpolation may leave the IK solution by this much (at
+    their midpoint, any point of the hand), m; farther, the segment gets another IK knot."""
+    max_refinements: int = 12
     """Rounds of knot insertion for the `max_point_step` bound."""
 
 
@@ -238,17 +244,22 @@ def _held_joints(ctx: _Context, q: NDArray, joints: NDArray) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- knots
-def _knots(ctx: _Context, curve: Curve, n_start: int) -> tuple[NDArray[np.float64], NDArray[np.float64], str]:
+def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64], str]:
     """Knots of a curve from s = 0 to s = 1, dense enough for `max_point_step`.
 
-    Starts with `n_start` evenly spaced values of s; splits every segment over the bound into
-    ceil(motion / max_point_step) parts (solved by `curve`, warm started from the knot before) until none
-    is over it. A knot the curve cannot solve keeps the curve's best effort and is reported.
+    Solves the curve on `n_coarse` evenly spaced values of s, then, while a segment moves a point of the
+    hand more than `max_point_step`: a segment not yet known to be straight gets a knot solved at its
+    middle (warm started from the joint-space midpoint); when that knot is within
+    `max_interpolation_error` of the midpoint, both halves are straight. A straight segment (every
+    segment of a `linear` curve) is split into equal joint-space parts, which is exactly the
+    interpolation rule, without solving. A knot the curve cannot solve keeps its best effort and is
+    reported.
 
     Returns:
         s (k,), knots (k, n), and why: "" or where the curve failed / that the bound was not reached.
     """
-    step = ctx.options.max_point_step
+    o = ctx.options
     failures: list[str] = []
 
     def solve(s: float, warm: NDArray | None) -> NDArray:
@@ -257,50 +268,66 @@ def _knots(ctx: _Context, curve: Curve, n_start: int) -> tuple[NDArray[np.float6
             failures.append(f"s = {s:.3f}: {why}")
         return q
 
-    s_knots = list(np.linspace(0.0, 1.0, max(2, n_start)))
+    s_knots = list(np.linspace(0.0, 1.0, max(2, n_coarse)))
     Q: list[NDArray] = []
     for s in s_knots:
         Q.append(solve(s, Q[-1] if Q else None))
+    straight = [linear] * (len(Q) - 1)
     motion = ctx.segment_motion(np.array(Q))
-    for _ in range(ctx.options.max_refinements):
-        if np.all(motion <= step):
+    for _ in range(o.max_refinements):
+        if np.all(motion <= o.max_point_step):
             break
-        s_new, Q_new = [s_knots[0]], [Q[0]]
+        s_new, Q_new, straight_new = [s_knots[0]], [Q[0]], []
         for i, m in enumerate(motion):
-            parts = int(math.ceil(m / step)) if m > step else 1
-            for j in range(1, parts):
-                s = s_knots[i] + (s_knots[i + 1] - s_knots[i]) * j / parts
-                s_new.append(s)
-                Q_new.append(solve(s, Q_new[-1]))
-            s_new.append(s_knots[i + 1])
-            Q_new.append(Q[i + 1])
-        s_knots, Q = s_new, Q_new
+            s0, s1, q0, q1 = s_knots[i], s_knots[i + 1], Q[i], Q[i + 1]
+            if m <= o.max_point_step:
+                straight_new.append(straight[i])
+            elif straight[i]:
+                parts = int(math.ceil(m / o.max_point_step))
+                s_new += [s0 + (s1 - s0) * j / parts for j in range(1, parts)]
+                Q_new += [q0 + (q1 - q0) * j / parts for j in range(1, parts)]
+                straight_new += [True] * parts
+            else:
+                q_lin = 0.5 * (q0 + q1)
+                q_mid = solve(0.5 * (s0 + s1), q_lin)
+                close = float(ctx.segment_motion(np.stack([q_lin, q_mid]))[0]) <= o.max_interpolation_error
+                s_new.append(0.5 * (s0 + s1))
+                Q_new.append(q_mid)
+                straight_new += [close, close]
+            s_new.append(s1)
+            Q_new.append(q1)
+        s_knots, Q, straight = s_new, Q_new, straight_new
         motion = ctx.segment_motion(np.array(Q))
     why = ""
     if failures:
         why = f"{len(failures)} knot{'s' if len(failures) > 1 else ''} not reached, first at {failures[0]}"
-    elif np.max(motion) > step:
-        why = (f"knots {np.max(motion) * 1e3:.2f} mm apart > {step * 1e3:.2f} mm after "
-               f"{ctx.options.max_refinements} refinements")
+    elif np.max(motion) > o.max_point_step:
+        why = (f"knots {np.max(motion) * 1e3:.2f} mm apart > {o.max_point_step * 1e3:.2f} mm after "
+               f"{o.max_refinements} refinements")
     return np.array(s_knots), np.array(Q), why
 
 
-def _n_start(ctx: _Context, q_a: NDArray, q_b: NDArray) -> int:
-    """Number of knots of a first grid between q_a and q_b (from the motion of their chord)."""
-    return int(math.ceil(float(ctx.segment_motion(np.stack([q_a, q_b]))[0]) / ctx.options.max_point_step)) + 1
+def _n_coarse(ctx: _Context, q_a: NDArray, q_b: NDArray, spacing: float) -> int:
+    """Knots of a first grid between q_a and q_b: one per `spacing` m of the motion of their chord."""
+    return int(math.ceil(float(ctx.segment_motion(np.stack([q_a, q_b]))[0]) / spacing)) + 1
 
 
 def _linear(q_a: NDArray, q_b: NDArray) -> Curve:
     return lambda s, _warm: (q_a + s * (q_b - q_a), "")
 
 
-def _evaluation_points(Q: NDArray, Ts: NDArray) -> tuple[NDArray, NDArray, NDArray[np.int64]]:
-    """Knots and segment midpoints by the interpolation rule: q (2k − 1, n), T (2k − 1, 4, 4) and the
-    segment (2k − 1,) each point belongs to (the last knot to the last segment)."""
-    k = len(Q)
-    u = np.arange(2 * k - 1) / 2.0
-    q, T = interpolate_knots(np.arange(k, dtype=float), Q, Ts, u)
-    return q, T, np.minimum(np.floor(u).astype(np.int64), k - 2)
+def _with_midpoints(Q: NDArray) -> NDArray[np.float64]:
+    """(2k − 1, n) the knots Q (k, n) and the joint-space midpoints of their segments, in order."""
+    out = np.empty((2 * len(Q) - 1, Q.shape[1]))
+    out[0::2] = Q
+    out[1::2] = 0.5 * (Q[:-1] + Q[1:])
+    return out
+
+
+def _evaluation_points(Q: NDArray, Ts: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Knots and segment midpoints by the interpolation rule: q (2k − 1, n) and T (2k − 1, 4, 4)."""
+    q, T = interpolate_knots(np.arange(len(Q), dtype=float), Q, Ts, np.arange(2 * len(Q) - 1) / 2.0)
+    return q, T
 
 
 def _timed(ctx: _Context, Q: NDArray, Ts: NDArray, phases: list[str], problems: list[str],
@@ -316,12 +343,14 @@ def _limit_problems(ctx: _Context, Q: NDArray) -> list[str]:
 
 
 # ----------------------------------------------------------------------------------------------- gait
-def _contact_normal_palm(ctx: _Context, q: NDArray, T: NDArray, finger: str) -> NDArray[np.float64]:
-    """(3,) unit outward normal at the finger's contact, palm frame: from the exact closest point to the
-    tip centre (the direction in which the tip's distance grows fastest)."""
-    p_object = transform_points(inv_T(T), ctx.hand.tip_positions(q)[[ctx.hand.fingers.index(finger)]])
-    closest, _ = ctx.obj.closest_points(p_object)
-    n = p_object[0] - closest[0]
+def _contact_normal_palm(ctx: _Context, step: PlanStep, finger: str) -> NDArray[np.float64]:
+    """(3,) unit outward normal at the finger's contact of `step`, palm frame: from its contact (the
+    exact closest point the step stores) to its tip centre, the direction in which the tip's distance
+    grows fastest (the face normal on a face)."""
+    r = ctx.hand.fingers.index(finger)
+    T = np.asarray(step.T_palm_object, dtype=float)
+    p_object = transform_points(inv_T(T), ctx.hand.tip_positions(step.q)[[r]])
+    n = p_object[0] - np.asarray(step.contacts_object, dtype=float)[r]
     if np.linalg.norm(n) < 1e-9:  # a point tip on the surface
         n = np.asarray(ctx.obj.surface_normals(p_object), dtype=float)[0]
     return T[:3, :3] @ (n / np.linalg.norm(n))
@@ -332,23 +361,30 @@ def _lift(ctx: _Context, q0: NDArray, finger: str, n_palm: NDArray) -> tuple[NDA
     hand, h = ctx.hand, ctx.options.lift_height
     p0 = hand.tip_positions(q0)[hand.fingers.index(finger)]
     joints = hand.finger_joints[finger]
-
     along = np.outer(n_palm, n_palm)
     weight = along + _SIDEWAYS_WEIGHT * (np.eye(3) - along)  # rise first, then stay on the line
+
+    def reach(s: float, start: NDArray) -> tuple[NDArray, bool]:
+        q, e = _ik(ctx, start, [finger], (p0 + s * h * n_palm)[None], joints, q0, weight)
+        return q, abs(float(e[0] @ n_palm)) <= _RISE_TOL * s * h and _lift_angle(
+            e[0], s * h, n_palm) <= ctx.options.max_lift_angle
 
     def curve(s: float, warm: NDArray | None) -> tuple[NDArray, str]:
         if s == 0.0:
             return q0, ""
-        target = p0 + s * h * n_palm
-        q, e = _ik(ctx, q0 if warm is None else warm, [finger], target[None], joints, q0, weight)
-        short = abs(float(e[0] @ n_palm))
-        angle = _lift_angle(e[0], s * h, n_palm)
-        if short <= _RISE_TOL * s * h and angle <= ctx.options.max_lift_angle:
+        q, ok = reach(s, q0 if warm is None else warm)
+        if not ok:  # march up the line from the contact: limits can stop one long IK step
+            q = q0
+            for u in (0.25, 0.5, 0.75, 1.0):
+                q, ok = reach(u * s, q)
+        if ok:
             return q, ""
+        e = p0 + s * h * n_palm - hand.tip_positions(q)[hand.fingers.index(finger)]
+        short, angle = abs(float(e @ n_palm)), _lift_angle(e, s * h, n_palm)
         return q, (f"the tip is {short * 1e3:.3f} mm short of its height, {np.degrees(angle):.1f}° off the "
                    f"normal{_held_joints(ctx, q, joints)}")
 
-    _, Q, why = _knots(ctx, curve, int(math.ceil(h / ctx.options.max_point_step)) + 1)
+    _, Q, why = _knots(ctx, curve, 2)
     return Q, why
 
 
@@ -385,10 +421,10 @@ def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDAr
             via, _ = _ik(ctx, q_mid, [finger], (p_mid + height * n_mid)[None], hand.finger_joints[finger],
                          q_mid)  # as high as the joint limits allow: the clearance judges it
             waypoints = [q_a, via, q_b]
-        legs = [_knots(ctx, _linear(a, b), _n_start(ctx, a, b))[1:]
+        legs = [_knots(ctx, _linear(a, b), 2, linear=True)[1:]
                 for a, b in zip(waypoints, waypoints[1:], strict=False)]
         Q = np.concatenate([legs[0][0]] + [leg[0][1:] for leg in legs[1:]])
-        q_eval, _, _ = _evaluation_points(Q, np.repeat(T[None], len(Q), axis=0))
+        q_eval = _with_midpoints(Q)
         clear = float(np.min(ctx.clearance(q_eval, np.repeat(T[None], len(q_eval), axis=0), spheres)))
         why = "; ".join(w for _, w in legs if w)
         if best is None or clear > best[1]:
@@ -403,15 +439,14 @@ def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDAr
 def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     """The path of gait step b from step a: lift-off, transit, touch-down of finger `b.finger`.
 
-    Metrics (m; angles rad): "lift_height" (tip-centre rise of the lift), "max_lift_angle" (lean of the
-    lift-off and touch-down from their normals), "min_transit_clearance" (the finger's
-    spheres in the transit), "min_clearance" (its non-tip spheres over the whole path), "min_tip_clearance"
-    (its tip during lift and touch-down: ≥ −surface_tol), "max_point_step".
+    Metrics (m; angles rad): "lift_height" (tip-centre rise of the lift-off), "max_lift_angle" (lean of
+    the lift-off and touch-down from their normals), "min_transit_clearance" (every sphere of the finger
+    in the transit), "min_clearance" (its non-tip spheres during lift-off and touch-down),
+    "min_tip_clearance" (its tip then: ≥ −surface_tol), "max_point_step".
     """
     hand, o, finger = ctx.hand, ctx.options, str(b.finger)
     T = np.asarray(b.T_palm_object, dtype=float)
-    n_a = _contact_normal_palm(ctx, a.q, T, finger)
-    n_b = _contact_normal_palm(ctx, b.q, T, finger)
+    n_a, n_b = _contact_normal_palm(ctx, a, finger), _contact_normal_palm(ctx, b, finger)
     lift, why_a = _lift(ctx, np.asarray(a.q, dtype=float), finger, n_a)
     down, why_b = _lift(ctx, np.asarray(b.q, dtype=float), finger, n_b)
     problems = [f"lift-off {w}" for w in [why_a] if w] + [f"touch-down {w}" for w in [why_b] if w]
@@ -421,15 +456,14 @@ def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     problems += [why_t] if why_t else []
     Q = np.concatenate([lift, transit[1:], down[::-1][1:]])
     phases = ["lift"] * (len(lift) - 1) + ["transit"] * (len(transit) - 1) + ["touch_down"] * (len(down) - 1)
-    Ts = np.repeat(T[None], len(Q), axis=0)
-    q_eval, T_eval, segment = _evaluation_points(Q, Ts)
+    # lift-off and touch-down: the finger's spheres at the knots and segment midpoints (one query)
+    q_eval = np.concatenate([_with_midpoints(lift), _with_midpoints(down)])
     mine = np.flatnonzero(np.array(ctx.sphere_finger, object) == finger)
-    clear = ctx.clearance(q_eval, T_eval, mine)
+    clear = ctx.clearance(q_eval, np.repeat(T[None], len(q_eval), axis=0), mine)
     tip_col = int(np.flatnonzero(mine == ctx.tip_index[finger])[0])
-    on_contact = np.isin(np.array(phases)[segment], ("lift", "touch_down"))
     non_tip = np.delete(clear, tip_col, axis=1)
     min_clear = float(np.min(non_tip)) if non_tip.size else math.inf
-    min_tip = float(np.min(clear[on_contact, tip_col])) if on_contact.any() else math.inf
+    min_tip = float(np.min(clear[:, tip_col]))
     if min_clear < 0.0:
         problems.append(f"a sphere of the {finger} finger is {-min_clear * 1e3:.3f} mm inside the object")
     if min_tip < -o.surface_tol:
@@ -441,7 +475,8 @@ def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     metrics = {"lift_height": rise, "max_lift_angle": lean, "min_transit_clearance": min_transit,
                "min_clearance": min_clear, "min_tip_clearance": min_tip,
                "max_point_step": float(np.max(ctx.segment_motion(Q)))}
-    return _timed(ctx, Q, Ts, phases, problems, {k: v for k, v in metrics.items() if math.isfinite(v)})
+    return _timed(ctx, Q, np.repeat(T[None], len(Q), axis=0), phases, problems,
+                  {k: v for k, v in metrics.items() if math.isfinite(v)})
 
 
 # ------------------------------------------------------------------------------------------- reposing
@@ -475,10 +510,10 @@ def _repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
             return q, ""
         return q, f"a tip is {err * 1e3:.4f} mm from its target{_held_joints(ctx, q, ctx.finger_joints)}"
 
-    s_knots, Q, why = _knots(ctx, curve, _n_start(ctx, q_a, q_b))
+    s_knots, Q, why = _knots(ctx, curve, _n_coarse(ctx, q_a, q_b, _COARSE_SPACING))
     problems = [f"IK: {why}"] if why else []
     Ts = np.stack([pose(float(s)) for s in s_knots])
-    q_eval, T_eval, _ = _evaluation_points(Q, Ts)
+    q_eval, T_eval = _evaluation_points(Q, Ts)
     tips = np.array([ctx.tip_index[f] for f in fingers])
     p_object = _to_object(T_eval, ctx.centers(q_eval)[:, tips])
     closest, sd = ctx.obj.closest_points(p_object.reshape(-1, 3))

@@ -1,0 +1,160 @@
+"""Benchmark: what the trajectories (issue 15) cost and how many pass, on every shipped problem.
+
+For each problem and method: the warm planning time (NLPs cached) with `trajectories=False` and with
+`trajectories=True` (median of `--repeats` alternating runs, wall and CPU time), the time of
+`attach_trajectories` alone, and the paths: how many, how many the trajectory code flags (by kind and
+reason), and an independent sampled check of every path with the exact mesh distance, every 2 ms of the
+motion (at 1 rad/s no point of the hand moves more than ≈ 0.3 mm between samples):
+
+* gaits: during the transit every sphere of the moving finger ≥ β − 0.05 mm from the object; during
+  lift-off and touch-down its non-tip spheres ≥ −0.05 mm and its tip ≥ −0.5 mm (no penetration);
+* reposings and final moves: every tip within 0.5 mm of the surface, every contact within 1 mm of where
+  it was on the object at the step before, every non-tip sphere ≥ −0.05 mm.
+
+Prints a markdown table; writes benchmarks/results/trajectories.json with the machine description.
+Measures; asserts nothing (target of issue 15: trajectories add at most 50 % to the median plan time).
+
+    python benchmarks/trajectories.py [--repeats 3] [--methods svd sd] [--problems box_rotate ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import pathlib
+import statistics
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from machine import REPO, machine_info  # noqa: E402
+
+from regrasp_casadi.motion import sample_knots  # noqa: E402
+from regrasp_casadi.planner import plan_regrasp  # noqa: E402
+from regrasp_casadi.problem import RegraspProblem  # noqa: E402
+
+RESULTS = REPO / "benchmarks" / "results" / "trajectories.json"
+DT = 0.002
+SLACK = 5e-5
+
+
+def _to_object(T: np.ndarray, p: np.ndarray) -> np.ndarray:
+    return np.einsum("kij,ksi->ksj", T[:, :3, :3], p - T[:, None, :3, 3])
+
+
+def sampled_check(plan, hand, obj, beta: float) -> list[str]:
+    """Independent check of every path sampled every `DT` s; one line per failing step."""
+    failures = []
+    radii = hand.sphere_radii(None, include_tip=True)
+    by_label = {s.label: s for s in hand.spheres}
+    spheres = [by_label[label] for label in hand.sphere_labels(None, include_tip=True)]
+    fingers = [s.finger for s in spheres]
+    is_tip = np.array([s.is_tip for s in spheres])
+    for i, (prev, step) in enumerate(zip(plan.steps[:-1], plan.steps[1:], strict=True), start=1):
+        path = step.path
+        t, q, T = sample_knots(path.t, path.q, path.T_palm_object, DT)
+        centres = _to_object(T, np.stack([hand.sphere_centers(x, None, include_tip=True) for x in q]))
+        if step.kind == "gait":
+            mine = np.array([f == step.finger for f in fingers])
+            d = obj.exact_signed_distance(centres[:, mine].reshape(-1, 3)).reshape(len(t), -1) - radii[mine]
+            phase = np.array(path.phases)[np.clip(np.searchsorted(path.t, t, side="right") - 1, 0,
+                                                  len(path.phases) - 1)]
+            transit = phase == "transit"
+            tip = is_tip[mine]
+            bad = []
+            if transit.any() and np.min(d[transit]) < beta - SLACK:
+                bad.append(f"transit clearance {np.min(d[transit]) * 1e3:.3f} mm")
+            if (~transit).any() and np.min(d[~transit][:, ~tip], initial=np.inf) < -SLACK:
+                bad.append(f"non-tip sphere {np.min(d[~transit][:, ~tip]) * 1e3:.3f} mm")
+            if (~transit).any() and np.min(d[~transit][:, tip]) < -5e-4:
+                bad.append(f"tip {np.min(d[~transit][:, tip]) * 1e3:.3f} mm")
+        else:
+            tips = centres[:, is_tip]
+            closest, sd = obj.closest_points(tips.reshape(-1, 3))
+            surface = np.max(np.abs(sd - np.tile(radii[is_tip], len(t))))
+            slip = np.max(np.linalg.norm(closest.reshape(tips.shape) - prev.contacts_object[None], axis=2))
+            others = obj.exact_signed_distance(centres[:, ~is_tip].reshape(-1, 3)) - np.tile(radii[~is_tip],
+                                                                                             len(t))
+            bad = [text for text, failed in ((f"surface {surface * 1e3:.3f} mm", surface > 5e-4),
+                                             (f"slip {slip * 1e3:.3f} mm", slip > 1e-3),
+                                             (f"non-tip sphere {np.min(others) * 1e3:.3f} mm",
+                                              np.min(others) < -SLACK)) if failed]
+        if bad:
+            failures.append(f"step {i} {step.kind}: " + ", ".join(bad))
+    return failures
+
+
+def _timed_plan(problem, method: str, trajectories: bool):
+    c0, w0 = time.process_time(), time.perf_counter()
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, trajectories=trajectories)
+    return plan, time.perf_counter() - w0, time.process_time() - c0
+
+
+def run(path: pathlib.Path, method: str, repeats: int) -> dict:
+    problem = RegraspProblem.load(path)
+    _timed_plan(problem, method, False)  # builds the NLPs
+    runs = {False: [], True: []}
+    plan = None
+    for _ in range(repeats):
+        for flag in (False, True):
+            p, wall, cpu = _timed_plan(problem, method, flag)
+            runs[flag].append((wall, cpu, p.timing.get("trajectories", 0.0)))
+            plan = p if flag else plan
+    flagged = collections.Counter()
+    for step in plan.steps[1:]:
+        if not step.path.ok:
+            flagged[(step.kind, step.path.detail.split(":")[0].split(" ")[0])] += 1
+    kinds = collections.Counter(s.kind for s in plan.steps[1:])
+    failures = sampled_check(plan, problem.hand, problem.obj, plan.options["beta"])
+    med = {flag: [statistics.median(r[k] for r in runs[flag]) for k in range(3)] for flag in runs}
+    return {"problem": path.stem, "method": method, "status": plan.status,
+            "wall_without": med[False][0], "wall_with": med[True][0], "cpu_without": med[False][1],
+            "cpu_with": med[True][1], "attach": med[True][2], "paths": dict(kinds),
+            "flagged": {f"{k[0]} {k[1]}": v for k, v in flagged.items()},
+            "n_flagged": sum(flagged.values()), "n_paths": len(plan.steps) - 1,
+            "knots": sum(len(s.path.t) for s in plan.steps[1:]),
+            "duration_s": sum(s.path.duration for s in plan.steps[1:]),
+            "sampled_failures": failures}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--methods", nargs="+", default=["svd", "sd"])
+    ap.add_argument("--problems", nargs="+", help="problem names (default: every problems/*.yaml)")
+    args = ap.parse_args(argv)
+    files = sorted((REPO / "problems").glob("*.yaml"))
+    if args.problems:
+        files = [f for f in files if f.stem in args.problems]
+    records = [run(f, m, args.repeats) for f in files for m in args.methods]
+    print("| problem | method | plan s without → with (wall) | CPU s without → with | attach s | paths "
+          "(g/r/f) | flagged | sampled check fails | knots | motion s |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in records:
+        p = r["paths"]
+        print(f"| {r['problem']} | {r['method']} | {r['wall_without']:.2f} → {r['wall_with']:.2f} | "
+              f"{r['cpu_without']:.2f} → {r['cpu_with']:.2f} | {r['attach']:.2f} | "
+              f"{p.get('gait', 0)}/{p.get('repose', 0)}/{p.get('final', 0)} | "
+              f"{r['n_flagged']} {r['flagged'] or ''} | {len(r['sampled_failures'])} | {r['knots']} | "
+              f"{r['duration_s']:.1f} |")
+    for key in ("wall", "cpu"):
+        without = statistics.median(r[f"{key}_without"] for r in records)
+        with_ = statistics.median(r[f"{key}_with"] for r in records)
+        print(f"median {key} time per plan: {without:.2f} s without, {with_:.2f} s with trajectories "
+              f"(+{100 * (with_ / without - 1):.0f} %)")
+    n_paths = sum(r["n_paths"] for r in records)
+    print(f"paths: {n_paths}, flagged by the trajectory code: {sum(r['n_flagged'] for r in records)}, "
+          f"failing the sampled check: {sum(len(r['sampled_failures']) for r in records)}")
+    for r in records:
+        for line in r["sampled_failures"]:
+            print(f"  {r['problem']} {r['method']}: {line}")
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(json.dumps({"machine": machine_info(), "records": records}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
