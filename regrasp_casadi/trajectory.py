@@ -72,9 +72,10 @@ _SIDEWAYS_WEIGHT = 0.1
 _COARSE_SPACING = 0.008
 """A reposing's first IK knots: one per this much motion of the hand's points, m (then bisection)."""
 
-_NEAR = 0.003
-"""Margin beyond a sphere's radius within which the clearance is computed exactly, m (farther, the
-convex pieces' lower bound is enough: every threshold checked here is β or less)."""
+_NEAR = 0.001
+"""Margin beyond the threshold checked (β in a transit, 0 elsewhere) within which a clearance is
+computed exactly, m; farther, the convex pieces' lower bound is enough (the clearance metrics above it
+are that lower bound)."""
 
 Curve = Callable[[float, "NDArray[np.float64] | None"], "tuple[NDArray[np.float64], str]"]
 """s ∈ [0, 1], warm-start q (or None) -> (q (n,), why): a phase of a path; `why` is "" on success."""
@@ -159,12 +160,13 @@ class _Context:
         rotation = np.abs(np.diff(Q, axis=0)) @ self.chain.T  # Σ|Δq_j| over each sphere's chain
         return np.max(dc + self.radii[None, :] * rotation, axis=1)
 
-    def clearance(self, Q: NDArray[np.float64], Ts: NDArray[np.float64], spheres: NDArray[np.int64]
-                  ) -> NDArray[np.float64]:
-        """(k, len(spheres)) exact sd(centre) − radius of the chosen spheres at knots (Q, Ts), m."""
+    def clearance(self, Q: NDArray[np.float64], Ts: NDArray[np.float64], spheres: NDArray[np.int64],
+                  threshold: float = 0.0) -> NDArray[np.float64]:
+        """(k, len(spheres)) sd(centre) − radius of the chosen spheres at knots (Q, Ts), m: exact where
+        it is below `threshold` + `_NEAR`, the convex pieces' lower bound above."""
         p_object = _to_object(Ts, self.centers(Q)[:, spheres]).reshape(-1, 3)
         r = np.tile(self.radii[spheres], len(Q))
-        d = np.asarray(self.obj.near_signed_distance(p_object, r + _NEAR), dtype=float)
+        d = np.asarray(self.obj.near_signed_distance(p_object, r + max(threshold, 0.0) + _NEAR), dtype=float)
         return (d - r).reshape(len(Q), len(spheres))
 
 
@@ -185,7 +187,9 @@ def _ik_step(J: NDArray, e: NDArray, dq_null: NDArray, at_lower: NDArray, at_upp
         Jf = J[:, free]
         null = dq_null[free]
         A = Jf @ Jf.T + damping_matrix
-        x = np.linalg.solve(A, np.column_stack([e, Jf @ null]))
+        rhs = np.empty((J.shape[0], 2))
+        rhs[:, 0], rhs[:, 1] = e, Jf @ null
+        x = np.linalg.solve(A, rhs)
         dq = np.zeros(J.shape[1])
         dq[free] = Jf.T @ (x[:, 0] - x[:, 1]) + null
         out = free & ((at_lower & (dq < 0)) | (at_upper & (dq > 0)))
@@ -338,8 +342,12 @@ def _timed(ctx: _Context, Q: NDArray, Ts: NDArray, phases: list[str], problems: 
 
 
 def _limit_problems(ctx: _Context, Q: NDArray) -> list[str]:
-    bad = [v for q in Q for v in ctx.hand.check_limits(q, 1e-9)]
-    return [f"joint {bad[0][0]} = {bad[0][1]:.4f} rad outside its limits"] if bad else []
+    """The first knot (k, n) outside the joint limits (by 1e-9), as a problem line."""
+    out = (Q < ctx.hand.q_lower - 1e-9) | (Q > ctx.hand.q_upper + 1e-9)
+    if not out.any():
+        return []
+    k, j = np.argwhere(out)[0]
+    return [f"joint {ctx.hand.joint_names[j]} = {Q[k, j]:.4f} rad outside its limits at knot {k}"]
 
 
 # ----------------------------------------------------------------------------------------------- gait
@@ -425,7 +433,7 @@ def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDAr
                 for a, b in zip(waypoints, waypoints[1:], strict=False)]
         Q = np.concatenate([legs[0][0]] + [leg[0][1:] for leg in legs[1:]])
         q_eval = _with_midpoints(Q)
-        clear = float(np.min(ctx.clearance(q_eval, np.repeat(T[None], len(q_eval), axis=0), spheres)))
+        clear = float(np.min(ctx.clearance(q_eval, np.repeat(T[None], len(q_eval), axis=0), spheres, o.beta)))
         why = "; ".join(w for _, w in legs if w)
         if best is None or clear > best[1]:
             best = (Q, clear, why)
