@@ -20,11 +20,12 @@ distance for the checks.
   a sphere of radius ρ whose centre moves by Δc on a chain whose joints move by Δq moves no point more
   than ‖Δc‖ + ρ·Σ|Δq_j|; segments over the bound are split (IK knots, or linear subdivisions in a
   transit) until none is.
-* **Checks** at every knot and every segment midpoint (the interpolation rule evaluated there): joint
-  limits, the moving finger's spheres ≥ β in a transit and not in the object during lift/touch-down;
-  in a reposing the tips within `surface_tol` of the surface, the contacts within `max_slip` of step A's,
-  every non-tip sphere (palm included) outside the object. A failure (an IK that cannot reach a knot
-  within the limits, a check) is reported in the path (`ok` False and `detail`), never hidden.
+* **Checks** at every knot (no point of the hand moves more than `max_point_step` between two, so a
+  distance between two knots is within half of it of one of theirs): joint limits, the moving finger's
+  spheres ≥ β in a transit and not in the object during lift-off and touch-down; in a reposing the tips
+  within `surface_tol` of the surface, the contacts within `max_slip` of step A's, every non-tip sphere
+  (palm included) outside the object. A failure (an IK that cannot reach a knot within the limits, a
+  check) is reported in the path (`ok` False and `detail`), never hidden.
 
     >>> plan = attach_trajectories(plan, hand, obj)          # what plan_regrasp does at the end
     >>> t, q, T_palm_object = plan.sample(0.01)
@@ -46,7 +47,6 @@ from regrasp_casadi.motion import (
     DEFAULT_MAX_JOINT_SPEED,
     DEFAULT_MIN_STEP_DURATION,
     StepPath,
-    interpolate_knots,
     time_stamps,
 )
 from regrasp_casadi.transforms import interpolate_pose, inv_T, transform_points
@@ -69,7 +69,7 @@ _RISE_TOL = 0.1
 _SIDEWAYS_WEIGHT = 0.1
 """Weight of the sideways error of a lift-off against its rise along the normal (IK)."""
 
-_COARSE_SPACING = 0.008
+_COARSE_SPACING = 0.016
 """A reposing's first IK knots: one per this much motion of the hand's points, m (then bisection)."""
 
 _NEAR = 0.001
@@ -113,7 +113,7 @@ class TrajectoryOptions:
     """IK: damped least-squares iterations per knot."""
     ik_damping: float = 1e-4
     """IK: damping λ of (J Jᵀ + λ² I), m."""
-    max_interpolation_error: float = 2e-5
+    max_interpolation_error: float = 1e-4
     """Between two IK knots the joint-space interpolation may leave the IK solution by this much (at
     their midpoint, any point of the hand), m; farther, the segment gets another IK knot."""
     max_refinements: int = 12
@@ -141,6 +141,10 @@ class _Context:
                           for f in hand.fingers}
         self.finger_joints = np.unique(np.concatenate([hand.finger_joints[f] for f in hand.fingers]))
         self._centers: dict[bytes, NDArray[np.float64]] = {}
+
+    def finger_spheres(self, finger: str) -> NDArray[np.int64]:
+        """Indices of the finger's spheres (tip included) in `centers`' second axis."""
+        return np.flatnonzero(np.array(self.sphere_finger, dtype=object) == finger)
 
     def centers(self, Q: NDArray[np.float64]) -> NDArray[np.float64]:
         """(k, S, 3) sphere centres, palm frame, m, for knots Q (k, n) (remembered per q for this plan)."""
@@ -183,13 +187,13 @@ def _ik_step(J: NDArray, e: NDArray, dq_null: NDArray, at_lower: NDArray, at_upp
     free = np.ones(J.shape[1], dtype=bool)
     dq = np.zeros(J.shape[1])
     damping_matrix = damping**2 * np.eye(J.shape[0])
+    rhs = np.empty((J.shape[0], 2))
+    rhs[:, 0] = e
     for _ in range(3):
         Jf = J[:, free]
         null = dq_null[free]
-        A = Jf @ Jf.T + damping_matrix
-        rhs = np.empty((J.shape[0], 2))
-        rhs[:, 0], rhs[:, 1] = e, Jf @ null
-        x = np.linalg.solve(A, rhs)
+        rhs[:, 1] = Jf @ null
+        x = np.linalg.solve(Jf @ Jf.T + damping_matrix, rhs)
         dq = np.zeros(J.shape[1])
         dq[free] = Jf.T @ (x[:, 0] - x[:, 1]) + null
         out = free & ((at_lower & (dq < 0)) | (at_upper & (dq > 0)))
@@ -217,19 +221,21 @@ def _ik(ctx: _Context, q_start: NDArray, fingers: Sequence[str], p_palm_targets:
     lo, hi = hand.q_lower[joints], hand.q_upper[joints]
     q = np.clip(q_start, hand.q_lower, hand.q_upper)
     e = p_palm_targets - hand.tip_positions(q)[rows]
-    err = float(np.max(np.abs(e @ W.T)))
+    err = float(np.abs(e @ W.T).max())
     for _ in range(o.ik_max_iters):
         if err <= _IK_CONVERGED:
             break
-        J = np.vstack([W @ hand.tip_jacobian(q, f)[:, joints] for f in fingers])
+        J = np.concatenate([W @ hand.tip_jacobian(q, f)[:, joints] for f in fingers])
         qj = q[joints]
         dq = _ik_step(J, (e @ W.T).ravel(), q_ref[joints] - qj, qj <= lo + 1e-12, qj >= hi - 1e-12,
                       o.ik_damping)
-        dq *= min(1.0, 0.2 / max(float(np.max(np.abs(dq))), 1e-12))  # at most 0.2 rad per iteration
+        largest = float(np.abs(dq).max())
+        if largest > 0.2:  # at most 0.2 rad per iteration
+            dq *= 0.2 / largest
         q_new = q.copy()
-        q_new[joints] = np.clip(qj + dq, lo, hi)
+        q_new[joints] = np.minimum(np.maximum(qj + dq, lo), hi)
         e_new = p_palm_targets - hand.tip_positions(q_new)[rows]
-        err_new = float(np.max(np.abs(e_new @ W.T)))
+        err_new = float(np.abs(e_new @ W.T).max())
         if err_new >= err:
             break  # no progress (joint limits, or the null-space pull at convergence): keep q
         stalled = err_new > 0.8 * err
@@ -320,20 +326,6 @@ def _linear(q_a: NDArray, q_b: NDArray) -> Curve:
     return lambda s, _warm: (q_a + s * (q_b - q_a), "")
 
 
-def _with_midpoints(Q: NDArray) -> NDArray[np.float64]:
-    """(2k − 1, n) the knots Q (k, n) and the joint-space midpoints of their segments, in order."""
-    out = np.empty((2 * len(Q) - 1, Q.shape[1]))
-    out[0::2] = Q
-    out[1::2] = 0.5 * (Q[:-1] + Q[1:])
-    return out
-
-
-def _evaluation_points(Q: NDArray, Ts: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Knots and segment midpoints by the interpolation rule: q (2k − 1, n) and T (2k − 1, 4, 4)."""
-    q, T = interpolate_knots(np.arange(len(Q), dtype=float), Q, Ts, np.arange(2 * len(Q) - 1) / 2.0)
-    return q, T
-
-
 def _timed(ctx: _Context, Q: NDArray, Ts: NDArray, phases: list[str], problems: list[str],
            metrics: dict[str, float]) -> StepPath:
     o = ctx.options
@@ -412,17 +404,22 @@ def _max_lean(ctx: _Context, knots: NDArray, finger: str, n: NDArray) -> float:
     return float(np.max(np.arctan2(sideways, np.maximum(along, 1e-12)), initial=0.0))
 
 
-def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDArray, T: NDArray
-             ) -> tuple[NDArray[np.float64], float, str]:
+def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDArray, T: NDArray,
+             also: NDArray) -> tuple[NDArray[np.float64], float, str, NDArray[np.float64]]:
     """Transit knots (k, n) from q_a to q_b, linear in joint space, directly or through one via point
     raised by `via_heights` along n_mid (palm frame); the first whose finger spheres keep ≥ β, else the
-    one with the largest clearance. Returns (knots, min clearance m, why)."""
+    one with the largest clearance.
+
+    The clearance of the finger's spheres at the knots `also` (j, n) is computed with the first attempt
+    (one query). Returns (knots, min clearance m, why, clearance of `also` (j, spheres) m).
+    """
     hand, o = ctx.hand, ctx.options
-    spheres = np.flatnonzero(np.array(ctx.sphere_finger, object) == finger)
+    spheres = ctx.finger_spheres(finger)
     r = hand.fingers.index(finger)
     p_mid = 0.5 * (hand.tip_positions(q_a)[r] + hand.tip_positions(q_b)[r])
     q_mid = 0.5 * (q_a + q_b)
     best: tuple[NDArray, float, str] | None = None
+    clear_also = np.zeros((0, len(spheres)))
     for height in (None, *o.via_heights):
         waypoints = [q_a, q_b]
         if height is not None:
@@ -432,16 +429,20 @@ def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDAr
         legs = [_knots(ctx, _linear(a, b), 2, linear=True)[1:]
                 for a, b in zip(waypoints, waypoints[1:], strict=False)]
         Q = np.concatenate([legs[0][0]] + [leg[0][1:] for leg in legs[1:]])
-        q_eval = _with_midpoints(Q)
-        clear = float(np.min(ctx.clearance(q_eval, np.repeat(T[None], len(q_eval), axis=0), spheres, o.beta)))
+        first = height is None
+        Q_all = np.concatenate([Q, also]) if first else Q
+        clear_all = ctx.clearance(Q_all, np.repeat(T[None], len(Q_all), axis=0), spheres, o.beta)
+        if first:
+            clear_also = clear_all[len(Q):]
+        clear = float(np.min(clear_all[: len(Q)]))
         why = "; ".join(w for _, w in legs if w)
         if best is None or clear > best[1]:
             best = (Q, clear, why)
         if clear >= o.beta:
-            return Q, clear, why
+            return Q, clear, why, clear_also
     assert best is not None
     return best[0], best[1], "; ".join(w for w in (best[2], f"transit clearance {best[1] * 1e3:.3f} mm "
-                                                   f"< β = {o.beta * 1e3:.3f} mm") if w)
+                                                   f"< β = {o.beta * 1e3:.3f} mm") if w), clear_also
 
 
 def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
@@ -460,14 +461,13 @@ def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     problems = [f"lift-off {w}" for w in [why_a] if w] + [f"touch-down {w}" for w in [why_b] if w]
     n_mid = n_a + n_b
     n_mid = n_mid / np.linalg.norm(n_mid) if np.linalg.norm(n_mid) > 0.3 else n_a
-    transit, min_transit, why_t = _transit(ctx, lift[-1], down[-1], finger, n_mid, T)
+    # the finger's spheres at the lift-off and touch-down knots: with the transit's first query
+    transit, min_transit, why_t, clear = _transit(ctx, lift[-1], down[-1], finger, n_mid, T,
+                                                  np.concatenate([lift, down]))
     problems += [why_t] if why_t else []
     Q = np.concatenate([lift, transit[1:], down[::-1][1:]])
     phases = ["lift"] * (len(lift) - 1) + ["transit"] * (len(transit) - 1) + ["touch_down"] * (len(down) - 1)
-    # lift-off and touch-down: the finger's spheres at the knots and segment midpoints (one query)
-    q_eval = np.concatenate([_with_midpoints(lift), _with_midpoints(down)])
-    mine = np.flatnonzero(np.array(ctx.sphere_finger, object) == finger)
-    clear = ctx.clearance(q_eval, np.repeat(T[None], len(q_eval), axis=0), mine)
+    mine = ctx.finger_spheres(finger)
     tip_col = int(np.flatnonzero(mine == ctx.tip_index[finger])[0])
     non_tip = np.delete(clear, tip_col, axis=1)
     min_clear = float(np.min(non_tip)) if non_tip.size else math.inf
@@ -521,14 +521,13 @@ def _repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     s_knots, Q, why = _knots(ctx, curve, _n_coarse(ctx, q_a, q_b, _COARSE_SPACING))
     problems = [f"IK: {why}"] if why else []
     Ts = np.stack([pose(float(s)) for s in s_knots])
-    q_eval, T_eval = _evaluation_points(Q, Ts)
     tips = np.array([ctx.tip_index[f] for f in fingers])
-    p_object = _to_object(T_eval, ctx.centers(q_eval)[:, tips])
+    p_object = _to_object(Ts, ctx.centers(Q)[:, tips])
     closest, sd = ctx.obj.closest_points(p_object.reshape(-1, 3))
-    surface = np.abs(sd.reshape(len(q_eval), -1) - ctx.radii[tips][None])
-    slip = np.linalg.norm(closest.reshape(len(q_eval), -1, 3) - np.asarray(a.contacts_object)[None], axis=2)
+    surface = np.abs(sd.reshape(len(Q), -1) - ctx.radii[tips][None])
+    slip = np.linalg.norm(closest.reshape(len(Q), -1, 3) - np.asarray(a.contacts_object)[None], axis=2)
     others = np.flatnonzero(~ctx.is_tip)
-    clear = ctx.clearance(q_eval, T_eval, others) if others.size else np.full((1, 1), math.inf)
+    clear = ctx.clearance(Q, Ts, others) if others.size else np.full((1, 1), math.inf)
     metrics = {"max_surface_error": float(np.max(surface)), "max_slip": float(np.max(slip)),
                "max_ik_error": ik_error[0],
                "min_clearance": float(np.min(clear)), "max_point_step": float(np.max(ctx.segment_motion(Q)))}

@@ -167,6 +167,42 @@ def test_malformed_field_is_named(path, value, pattern):
         Plan.from_dict(d)
 
 
+_DELETE = object()
+
+
+@pytest.mark.parametrize(
+    "keys, value, pattern",
+    [
+        (("phases", 0), "teleport", r"steps\[1\]\.path\.phases\[0\]: expected one of lift, transit, "),
+        (("speed",), 1.0, r"steps\[1\]\.path: unknown field 'speed'"),
+        (("t",), [0.0, 2.0, 1.0, 3.0], r"steps\[1\]\.path\.t: expected time stamps from 0, non-decreasing"),
+        (("q",), [[0.0] * 15] * 4, r"steps\[1\]\.path\.q: expected 16 joints per knot"),
+        (("phases",), ["lift"], r"steps\[1\]\.path: a path needs k ≥ 2 knots"),
+        (("interpolation",), "cubic", r"steps\[1\]\.path\.interpolation: expected one of linear, found"),
+        (("metrics", "lift_height"), "high", r"steps\[1\]\.path\.metrics\.lift_height: expected a finite"),
+        (("ok",), _DELETE, r"steps\[1\]\.path\.ok: missing field"),
+    ],
+)
+def test_malformed_path_is_named(keys, value, pattern):
+    d = _random_plan().to_dict()
+    target = d["steps"][1]["path"]
+    for k in keys[:-1]:
+        target = target[k]
+    if value is _DELETE:
+        del target[keys[-1]]
+    else:
+        target[keys[-1]] = value
+    with pytest.raises(PlanFormatError, match=pattern):
+        Plan.from_dict(d)
+
+
+def test_a_version_2_step_needs_its_path_field():
+    d = _random_plan().to_dict()
+    del d["steps"][2]["path"]
+    with pytest.raises(PlanFormatError, match=r"steps\[2\]\.path: missing field"):
+        Plan.from_dict(d)
+
+
 def test_load_errors_name_the_file(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
