@@ -9,17 +9,19 @@ distance for the checks.
 * **Gait** (one finger r moves, the object stays): lift-off of r's tip centre along its contact normal
   by `lift_height`, a transit linear in joint space between the lifted start and the lifted point above
   the new contact (through a via point raised above the object when a sample comes closer than β),
-  touch-down along the new contact's normal. Only r's joints change. The lift and touch-down knots are IK
-  solutions (the touch-down is the lift from the new contact, reversed, so it ends exactly at the step).
+  touch-down along the new contact's normal. Only r's joints change. The lift-off and touch-down come
+  from IK on the tip (the touch-down is the lift from the new contact, reversed, so it ends exactly at
+  the step).
 * **Reposing** (repose and final steps; the object moves with the hand): the object pose is interpolated
   from step A to step B (translation linear, rotation geodesic: `transforms.interpolate_pose`), the tip
   centres held in the object frame (interpolated linearly from A's to B's, which differ by OPT2's slip)
-  and mapped by that pose, and every knot is an IK solution for all fingers, warm started from the
-  previous knot and pulled towards the joint-space interpolation in the null space.
+  and mapped by that pose, and the joints come from IK for all fingers, warm started from the
+  neighbouring knots and pulled towards the joint-space interpolation in the null space.
 * **Knots** are placed so that no point of the hand moves more than `max_point_step` between two knots:
   a sphere of radius ρ whose centre moves by Δc on a chain whose joints move by Δq moves no point more
-  than ‖Δc‖ + ρ·Σ|Δq_j|; segments over the bound are split (IK knots, or linear subdivisions in a
-  transit) until none is.
+  than ‖Δc‖ + ρ·Σ|Δq_j|. Segments over the bound are bisected with IK knots until joint-space
+  interpolation stays within `max_interpolation_error` of the IK solution, then split into equal
+  joint-space parts (exactly the interpolation rule; a transit is split so from the start).
 * **Checks** at every knot (no point of the hand moves more than `max_point_step` between two, so a
   distance between two knots is within half of it of one of theirs): joint limits, the moving finger's
   spheres ≥ β in a transit and not in the object during lift-off and touch-down; in a reposing the tips
@@ -73,9 +75,8 @@ _COARSE_SPACING = 0.016
 """A reposing's first IK knots: one per this much motion of the hand's points, m (then bisection)."""
 
 _NEAR = 0.001
-"""Margin beyond the threshold checked (β in a transit, 0 elsewhere) within which a clearance is
-computed exactly, m; farther, the convex pieces' lower bound is enough (the clearance metrics above it
-are that lower bound)."""
+"""Margin beyond the threshold checked (β in a transit, 0 elsewhere) within which a clearance is exact,
+m; farther, a lower bound is enough (bounding box, convex pieces) and the metrics report it."""
 
 Curve = Callable[[float, "NDArray[np.float64] | None"], "tuple[NDArray[np.float64], str]"]
 """s ∈ [0, 1], warm-start q (or None) -> (q (n,), why): a phase of a path; `why` is "" on success."""
@@ -141,6 +142,8 @@ class _Context:
                           for f in hand.fingers}
         self.finger_joints = np.unique(np.concatenate([hand.finger_joints[f] for f in hand.fingers]))
         self._centers: dict[bytes, NDArray[np.float64]] = {}
+        self.box_lower, self.box_upper = (np.asarray(b, dtype=float) for b in obj.mesh.bounds)
+        """The object mesh's bounding box, object frame, m."""
 
     def finger_spheres(self, finger: str) -> NDArray[np.int64]:
         """Indices of the finger's spheres (tip included) in `centers`' second axis."""
@@ -159,10 +162,7 @@ class _Context:
 
     def segment_motion(self, Q: NDArray[np.float64]) -> NDArray[np.float64]:
         """(k − 1,) bound on how far any point of the hand moves between consecutive knots Q (k, n), m."""
-        C = self.centers(Q)
-        dc = np.linalg.norm(np.diff(C, axis=0), axis=2)
-        rotation = np.abs(np.diff(Q, axis=0)) @ self.chain.T  # Σ|Δq_j| over each sphere's chain
-        return np.max(dc + self.radii[None, :] * rotation, axis=1)
+        return self.pair_motion(Q[:-1], Q[1:])
 
     def clearance(self, Q: NDArray[np.float64], Ts: NDArray[np.float64], spheres: NDArray[np.int64],
                   threshold: float = 0.0) -> NDArray[np.float64]:
@@ -170,8 +170,19 @@ class _Context:
         it is below `threshold` + `_NEAR`, the convex pieces' lower bound above."""
         p_object = _to_object(Ts, self.centers(Q)[:, spheres]).reshape(-1, 3)
         r = np.tile(self.radii[spheres], len(Q))
-        d = np.asarray(self.obj.near_signed_distance(p_object, r + max(threshold, 0.0) + _NEAR), dtype=float)
+        near = r + max(threshold, 0.0) + _NEAR
+        d = np.linalg.norm(np.maximum(np.maximum(self.box_lower - p_object, p_object - self.box_upper), 0.0),
+                           axis=1)  # distance to the mesh's bounding box: a lower bound
+        close = d <= near
+        if np.any(close):
+            d[close] = self.obj.near_signed_distance(p_object[close], near[close])
         return (d - r).reshape(len(Q), len(spheres))
+
+    def pair_motion(self, Q_a: NDArray[np.float64], Q_b: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(k,) bound on how far any point of the hand moves from Q_a[i] to Q_b[i] (k, n), m: per sphere
+        ‖Δc‖ + ρ·Σ|Δq_j| over the joints that move it."""
+        dc = np.linalg.norm(self.centers(Q_b) - self.centers(Q_a), axis=2)
+        return np.max(dc + self.radii[None, :] * (np.abs(Q_b - Q_a) @ self.chain.T), axis=1)
 
 
 def _to_object(Ts: NDArray, p_palm: NDArray) -> NDArray[np.float64]:
@@ -288,6 +299,7 @@ def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
         if np.all(motion <= o.max_point_step):
             break
         s_new, Q_new, straight_new = [s_knots[0]], [Q[0]], []
+        bisected: list[tuple[int, NDArray, NDArray]] = []  # (segment index in straight_new, q_lin, q_mid)
         for i, m in enumerate(motion):
             s0, s1, q0, q1 = s_knots[i], s_knots[i + 1], Q[i], Q[i + 1]
             if m <= o.max_point_step:
@@ -300,12 +312,16 @@ def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
             else:
                 q_lin = 0.5 * (q0 + q1)
                 q_mid = solve(0.5 * (s0 + s1), q_lin)
-                close = float(ctx.segment_motion(np.stack([q_lin, q_mid]))[0]) <= o.max_interpolation_error
+                bisected.append((len(straight_new), q_lin, q_mid))
                 s_new.append(0.5 * (s0 + s1))
                 Q_new.append(q_mid)
-                straight_new += [close, close]
+                straight_new += [False, False]
             s_new.append(s1)
             Q_new.append(q1)
+        if bisected:  # both halves are straight where the IK midpoint is close to the joint-space one
+            gaps = ctx.pair_motion(np.array([b[1] for b in bisected]), np.array([b[2] for b in bisected]))
+            for (k, _, _), gap in zip(bisected, gaps, strict=True):
+                straight_new[k] = straight_new[k + 1] = bool(gap <= o.max_interpolation_error)
         s_knots, Q, straight = s_new, Q_new, straight_new
         motion = ctx.segment_motion(np.array(Q))
     why = ""
