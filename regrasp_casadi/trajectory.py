@@ -333,20 +333,17 @@ def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
     return np.array(s_knots), np.array(Q), why
 
 
-def _n_coarse(ctx: _Context, q_a: NDArray, q_b: NDArray, spacing: float) -> int:
-    """Knots of a first grid between q_a and q_b: one per `spacing` m of the motion of their chord."""
-    return int(math.ceil(float(ctx.segment_motion(np.stack([q_a, q_b]))[0]) / spacing)) + 1
-
-
 def _linear(q_a: NDArray, q_b: NDArray) -> Curve:
     return lambda s, _warm: (q_a + s * (q_b - q_a), "")
 
 
 def _timed(ctx: _Context, Q: NDArray, Ts: NDArray, phases: list[str], problems: list[str],
            metrics: dict[str, float]) -> StepPath:
+    """The path of knots Q (k, n), Ts (k, 4, 4) with its time stamps (finite metrics only)."""
     o = ctx.options
     return StepPath(t=time_stamps(Q, o.max_joint_speed, o.min_step_duration), q=Q, T_palm_object=Ts,
-                    phases=tuple(phases), ok=not problems, detail="; ".join(problems), metrics=metrics)
+                    phases=tuple(phases), ok=not problems, detail="; ".join(problems),
+                    metrics={k: v for k, v in metrics.items() if math.isfinite(v)})
 
 
 def _limit_problems(ctx: _Context, Q: NDArray) -> list[str]:
@@ -499,8 +496,7 @@ def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     metrics = {"lift_height": rise, "max_lift_angle": lean, "min_transit_clearance": min_transit,
                "min_clearance": min_clear, "min_tip_clearance": min_tip,
                "max_point_step": float(np.max(ctx.segment_motion(Q)))}
-    return _timed(ctx, Q, np.repeat(T[None], len(Q), axis=0), phases, problems,
-                  {k: v for k, v in metrics.items() if math.isfinite(v)})
+    return _timed(ctx, Q, np.repeat(T[None], len(Q), axis=0), phases, problems, metrics)
 
 
 # ------------------------------------------------------------------------------------------- reposing
@@ -534,7 +530,8 @@ def _repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
             return q, ""
         return q, f"a tip is {err * 1e3:.4f} mm from its target{_held_joints(ctx, q, ctx.finger_joints)}"
 
-    s_knots, Q, why = _knots(ctx, curve, _n_coarse(ctx, q_a, q_b, _COARSE_SPACING))
+    chord = float(ctx.segment_motion(np.stack([q_a, q_b]))[0])
+    s_knots, Q, why = _knots(ctx, curve, int(math.ceil(chord / _COARSE_SPACING)) + 1)
     problems = [f"IK: {why}"] if why else []
     Ts = np.stack([pose(float(s)) for s in s_knots])
     tips = np.array([ctx.tip_index[f] for f in fingers])
@@ -545,8 +542,8 @@ def _repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     others = np.flatnonzero(~ctx.is_tip)
     clear = ctx.clearance(Q, Ts, others) if others.size else np.full((1, 1), math.inf)
     metrics = {"max_surface_error": float(np.max(surface)), "max_slip": float(np.max(slip)),
-               "max_ik_error": ik_error[0],
-               "min_clearance": float(np.min(clear)), "max_point_step": float(np.max(ctx.segment_motion(Q)))}
+               "max_ik_error": ik_error[0], "min_clearance": float(np.min(clear)),
+               "max_point_step": float(np.max(ctx.segment_motion(Q)))}
     if metrics["max_surface_error"] > o.surface_tol:
         problems.append(f"a tip is {metrics['max_surface_error'] * 1e3:.3f} mm off the surface "
                         f"(> {o.surface_tol * 1e3:.2f} mm)")
@@ -555,8 +552,7 @@ def _repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     if metrics["min_clearance"] < 0.0:
         problems.append(f"a non-tip sphere is {-metrics['min_clearance'] * 1e3:.3f} mm inside the object")
     problems += _limit_problems(ctx, Q)
-    return _timed(ctx, Q, Ts, ["repose"] * (len(Q) - 1), problems,
-                  {k: v for k, v in metrics.items() if math.isfinite(v)})
+    return _timed(ctx, Q, Ts, ["repose"] * (len(Q) - 1), problems, metrics)
 
 
 # --------------------------------------------------------------------------------------------- public
