@@ -14,7 +14,7 @@ motion (at 1 rad/s no point of the hand moves more than ≈ 0.3 mm between sampl
 Prints a markdown table; writes benchmarks/results/trajectories.json with the machine description.
 Measures; asserts nothing (target of issue 15: trajectories add at most 50 % to the median plan time).
 
-    python benchmarks/trajectories.py [--repeats 3] [--methods svd sd] [--problems box_rotate ...]
+    python benchmarks/trajectories.py [--repeats 3] [--methods svd sd] [--problems box_rotate ...] [--ycb]
 """
 
 from __future__ import annotations
@@ -125,8 +125,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--methods", nargs="+", default=["svd", "sd"])
     ap.add_argument("--problems", nargs="+", help="problem names (default: every problems/*.yaml)")
+    ap.add_argument("--ycb", action="store_true",
+                    help="also the paper's YCB pairs (benchmarks/problems/*.yaml; needs ../shared/reference)")
+    ap.add_argument("--out", type=pathlib.Path, default=RESULTS, help="results JSON")
     args = ap.parse_args(argv)
     files = sorted((REPO / "problems").glob("*.yaml"))
+    if args.ycb:
+        files += sorted((REPO / "benchmarks" / "problems").glob("*.yaml"))
     if args.problems:
         files = [f for f in files if f.stem in args.problems]
     records = [run(f, m, args.repeats) for f in files for m in args.methods]
@@ -151,8 +156,8 @@ def main(argv: list[str] | None = None) -> int:
     for r in records:
         for line in r["sampled_failures"]:
             print(f"  {r['problem']} {r['method']}: {line}")
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps({"machine": machine_info(), "records": records}, indent=1))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"machine": machine_info(), "records": records}, indent=1))
     return 0
 
 
