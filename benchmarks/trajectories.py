@@ -110,7 +110,7 @@ def run(path: pathlib.Path, method: str, repeats: int) -> dict:
         if not step.path.ok:
             flagged[(step.kind, step.path.detail.split(":")[0].split(" ")[0])] += 1
     kinds = collections.Counter(s.kind for s in plan.steps[1:])
-    failures = sampled_check(plan, problem.hand, problem.obj, plan.options["beta"])
+    failures = sampled_check(plan, problem.hand, problem.obj, plan.options["trajectory"]["beta"])
     med = {flag: [statistics.median(r[k] for r in runs[flag]) for k in range(3)] for flag in runs}
     return {"problem": path.stem, "method": method, "status": plan.status,
             "wall_without": med[False][0], "wall_with": med[True][0], "cpu_without": med[False][1],
