@@ -102,10 +102,16 @@ def frozen_array(x: Any, shape: tuple[int | None, ...] | None = None) -> NDArray
     return a
 
 
-def _arrays_equal(a: Any, b: Any) -> bool:
-    if a is None or b is None:
-        return a is None and b is None
-    return bool(np.array_equal(np.asarray(a), np.asarray(b)))
+def _fields_equal(a: Any, b: Any) -> bool:
+    """Every dataclass field of a and b equal: arrays bit for bit (`np.array_equal`), others by `==`."""
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+            if x is None or y is None or not np.array_equal(np.asarray(x), np.asarray(y)):
+                return False
+        elif x != y:
+            return False
+    return True
 
 
 # ------------------------------------------------------------------------------------------- PlanStep
@@ -145,19 +151,7 @@ class PlanStep:
         object.__setattr__(self, "solve_time", float(self.solve_time))
 
     def __eq__(self, other: object) -> bool:
-        if not isinstance(other, PlanStep):
-            return NotImplemented
-        return (
-            self.kind == other.kind
-            and self.finger == other.finger
-            and _arrays_equal(self.q, other.q)
-            and _arrays_equal(self.T_palm_object, other.T_palm_object)
-            and _arrays_equal(self.contacts_object, other.contacts_object)
-            and _arrays_equal(self.contact_error, other.contact_error)
-            and self.solver_status == other.solver_status
-            and self.solve_time == other.solve_time
-            and self.path == other.path
-        )
+        return _fields_equal(self, other) if isinstance(other, PlanStep) else NotImplemented
 
     __hash__ = None  # type: ignore[assignment]
 
@@ -398,24 +392,7 @@ class Plan:
         object.__setattr__(self, "iteration_errors", frozen_array(self.iteration_errors, (None,)))
 
     def __eq__(self, other: object) -> bool:
-        if not isinstance(other, Plan):
-            return NotImplemented
-        return (
-            self.steps == other.steps
-            and _arrays_equal(self.goal_contacts_object, other.goal_contacts_object)
-            and _arrays_equal(self.goal_T_palm_object, other.goal_T_palm_object)
-            and self.fingers == other.fingers
-            and self.hand_spec == other.hand_spec
-            and self.object_spec == other.object_spec
-            and self.method == other.method
-            and self.status == other.status
-            and self.status_detail == other.status_detail
-            and self.iterations == other.iterations
-            and _arrays_equal(self.iteration_errors, other.iteration_errors)
-            and self.timing == other.timing
-            and self.options == other.options
-            and self.schema_version == other.schema_version
-        )
+        return _fields_equal(self, other) if isinstance(other, Plan) else NotImplemented
 
     __hash__ = None  # type: ignore[assignment]
 
