@@ -52,6 +52,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from machine import machine_info  # noqa: E402
 
 from regrasp_casadi import convex, signed_distance  # noqa: E402
+from regrasp_casadi.mesh_repair import genus, shells  # noqa: E402
 from regrasp_casadi.objects import ObjectModel  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -107,6 +108,8 @@ def evaluate(name: str, make, n: int) -> dict:
     obj = make()
     build = time.perf_counter() - t0
     decomposed = convex.decomposition_count() > n_before
+    hull_excess, hull_dist = convex.hull_error(obj.mesh)
+    over_p99, over_max = convex.decomposition_error(obj.mesh, obj.pieces)
     rng = np.random.default_rng(0)
     pts, normals = obj.sample_surface(n, seed=0)
     shell_out = pts + normals * rng.uniform(0.0, 0.03, (n, 1))
@@ -133,6 +136,12 @@ def evaluate(name: str, make, n: int) -> dict:
         "k_max": int(k_max),
         "build_s": build,
         "decomposed": bool(decomposed),
+        "genus": int(genus(obj.mesh)) if len(shells(obj.mesh)) == 1 else None,
+        "hull_volume_excess": hull_excess,
+        "hull_distance_mm": hull_dist * 1e3,
+        "near_convex": bool(convex.is_near_convex(obj.mesh)),
+        "overcover_p99_mm": over_p99 * 1e3,
+        "overcover_max_mm": over_max * 1e3,
         "tau_m": signed_distance.DEFAULT_TAU,
         "bias_bound_mm": obj.bias_bound * 1e3,
         "exact_self_distance_max_m": float(np.abs(ex_surf).max()),
@@ -152,27 +161,66 @@ def evaluate(name: str, make, n: int) -> dict:
     return res
 
 
+GENERATED = {
+    "box": ObjectModel.box,
+    "cylinder": ObjectModel.cylinder,
+    "sphere": ObjectModel.sphere,  # 7 cm across (a baseball)
+    "sphere (320 planes)": lambda: ObjectModel.sphere(max_planes_per_piece=320),
+    "capsule": ObjectModel.capsule,
+    "bottle": ObjectModel.bottle,
+    "banana": ObjectModel.banana,
+    "bowl": ObjectModel.bowl,
+    "cup": ObjectModel.cup,
+    "mug": ObjectModel.mug,
+    "flat_tool": ObjectModel.flat_tool,
+    "holed_box": ObjectModel.holed_box,
+}
+
+
+def sweep(name: str, mesh, thresholds: list[float], max_seconds: float) -> dict:
+    """coacd at each threshold (coarse to fine): pieces, time and over-cover error; the chosen threshold is
+    the first whose successor improves the over-cover p99 by less than 25 % (or the last one)."""
+    rows = []
+    for th in sorted(thresholds, reverse=True):
+        t0 = time.perf_counter()
+        verts = convex._decompose(mesh, th, convex.DEFAULT_MAX_PIECES, max_seconds=max_seconds,
+                                  desc=f"{name} t={th:g}")
+        dt = time.perf_counter() - t0
+        pieces = [convex.simplify_piece(v) for v in verts]
+        p99, worst = convex.decomposition_error(mesh, pieces)
+        rows.append({"threshold": th, "pieces": len(pieces), "time_s": dt, "overcover_p99_mm": p99 * 1e3,
+                     "overcover_max_mm": worst * 1e3})
+        print(f"  sweep {name} t={th:g}: {len(pieces)} pieces, {dt:.1f} s, over-cover p99 {p99 * 1e3:.2f} mm",
+              file=sys.stderr, flush=True)
+    chosen = rows[-1]["threshold"]
+    for a, b in zip(rows, rows[1:], strict=False):
+        if b["overcover_p99_mm"] > 0.75 * a["overcover_p99_mm"]:
+            chosen = a["threshold"]
+            break
+    return {"object": name, "rows": rows, "chosen_threshold": chosen}
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument("--n", type=int, default=3000, help="surface samples (and as many per shell side)")
     ap.add_argument("--thresholds", type=float, nargs="+", default=[0.05], help="coacd thresholds (YCB)")
     ap.add_argument("--no-ycb", action="store_true")
+    ap.add_argument("--objects", nargs="+", help="only these generated objects / YCB names")
+    ap.add_argument("--sweep", type=float, nargs="+", metavar="T",
+                    help="also decompose each non-convex generated object at these coacd thresholds")
+    ap.add_argument("--max-seconds", type=float, default=convex.DEFAULT_MAX_SECONDS,
+                    help="time cap of one sweep decomposition, s")
     ap.add_argument("--use-cache", action="store_true", help="use the user's decomposition cache")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "geometry.json"))
     args = ap.parse_args()
     if not args.use_cache:
         os.environ["REGRASP_CACHE_DIR"] = tempfile.mkdtemp(prefix="regrasp_bench_cache_")
-    cases = [
-        ("box", ObjectModel.box),
-        ("cylinder", ObjectModel.cylinder),
-        ("sphere", ObjectModel.sphere),
-        ("sphere (320 planes)", lambda: ObjectModel.sphere(max_planes_per_piece=320)),
-        ("capsule", ObjectModel.capsule),
-        ("bottle", ObjectModel.bottle),
-        ("banana", ObjectModel.banana),
-    ]
+    cases = [(k, v) for k, v in GENERATED.items() if not args.objects or k in args.objects]
     if not args.no_ycb:
         for nm in YCB_NAMES:
+            if args.objects and nm not in args.objects:
+                continue
             path = YCB / nm / "mesh.obj"
             if not path.is_file():
                 print(f"skipping {nm}: {path} not present")
@@ -180,10 +228,33 @@ def main() -> None:
             for th in args.thresholds:
                 cases.append((f"{nm} (t={th:g})", lambda p=path, t=th: ObjectModel.from_mesh(p, threshold=t)))
     results = []
+    sweeps = []
     for name, make in cases:
         r = evaluate(name, make, args.n)
         results.append(r)
         print(f"done {name}: surface p99 {r['surface']['p99_mm']:.2f} mm", file=sys.stderr, flush=True)
+        if args.sweep and r["hull_distance_mm"] > 1e-6 and name in GENERATED:
+            sweeps.append(sweep(name, make().mesh, args.sweep, args.max_seconds))
+    hdr = ("| object | genus | hull: excess % / dist mm | pieces | planes | build s | over-cover p99/max mm | "
+           "surface p99/max mm | outside p99/max mm |")
+    print(hdr)
+    print("|" + "---|" * (hdr.count("|") - 1))
+    for r in results:
+        print(f"| {r['object']} | {r['genus']} | {100 * r['hull_volume_excess']:.2f} / "
+              f"{r['hull_distance_mm']:.2f}{' (hull)' if r['near_convex'] else ''} | {r['pieces']} | "
+              f"{r['planes']} | {r['build_s']:.1f}{'' if r['decomposed'] else '*'} | "
+              f"{r['overcover_p99_mm']:.2f}/{r['overcover_max_mm']:.2f} | "
+              f"{r['surface']['p99_mm']:.2f}/{r['surface']['max_mm']:.2f} | "
+              f"{r['outside']['p99_mm']:.2f}/{r['outside']['max_mm']:.2f} |")
+    if sweeps:
+        print("\n| object | threshold | pieces | decomp s | over-cover p99/max mm | chosen |")
+        print("|---|---|---|---|---|---|")
+        for sw in sweeps:
+            for row in sw["rows"]:
+                print(f"| {sw['object']} | {row['threshold']:g} | {row['pieces']} | {row['time_s']:.1f} | "
+                      f"{row['overcover_p99_mm']:.2f}/{row['overcover_max_mm']:.2f} | "
+                      f"{'yes' if row['threshold'] == sw['chosen_threshold'] else ''} |")
+    print()
     hdr = ("| object | pieces | planes | decomp s | surface p50/95/99/max mm | hard / all-planes p99 mm | "
            "inside p99/max mm | outside p99/max mm | out excess / bound mm | sign err (>1 mm) | "
            "f call µs | f+grad call µs | f+grad VM µs/pt SX / MX |")
@@ -208,7 +279,9 @@ def main() -> None:
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"machine": info, "n_samples": args.n, "thresholds": args.thresholds,
-                               "results": results}, indent=1))
+                               "near_convex_rule": {"hull_distance_m": convex.DEFAULT_HULL_TOLERANCE,
+                                                    "hull_volume_excess": convex.HULL_VOLUME_TOLERANCE},
+                               "results": results, "sweeps": sweeps}, indent=1))
 
 
 if __name__ == "__main__":

@@ -50,6 +50,7 @@ __all__ = [
     "coarse_pieces",
     "convex_pieces",
     "decomposition_count",
+    "decomposition_error",
     "hull_error",
     "is_near_convex",
     "select_local_planes",
@@ -72,7 +73,7 @@ HULL_VOLUME_TOLERANCE = 0.02
 """... and whose hull's volume exceeds its own by at most this fraction."""
 DEFAULT_MAX_SECONDS = 300.0
 """Time cap of one coacd decomposition, s (then cheaper settings, then the hull; see `_decompose`)."""
-FALLBACK_COACD = {"mcts_iterations": 30, "mcts_max_depth": 2, "mcts_nodes": 10}
+FALLBACK_COACD = {"resolution": 500, "mcts_iterations": 30, "mcts_max_depth": 2, "mcts_nodes": 10}
 """coacd settings of the second, cheaper attempt after a timeout."""
 LOCAL_PIECES = 2
 """Pieces in a local plane set (see `select_local_planes`)."""
@@ -277,6 +278,24 @@ def is_near_convex(mesh: trimesh.Trimesh, tolerance: float = DEFAULT_HULL_TOLERA
     if (hull.volume - mesh.volume) / mesh.volume > HULL_VOLUME_TOLERANCE:  # cheap test first
         return False
     return hull_error(mesh)[1] <= tolerance
+
+
+def decomposition_error(mesh: trimesh.Trimesh, pieces: Sequence[ConvexPiece],
+                        n_samples: int = 3000) -> tuple[float, float]:
+    """How far the union of the pieces reaches beyond the mesh (where hulls bridge a concavity or fill a
+    cavity): (p99, max), m, over area-uniform samples of the union's boundary (each piece's hull surface,
+    less what lies inside another piece) of their distance outside the mesh (0 on or inside it)."""
+    hulls = [trimesh.convex.convex_hull(pc.vertices) for pc in pieces]
+    areas = np.array([h.area for h in hulls])
+    counts = np.maximum(1, np.round(n_samples * areas / areas.sum()).astype(int))
+    samples = []
+    for k, (hull, count) in enumerate(zip(hulls, counts, strict=True)):
+        pts, _ = trimesh.sample.sample_surface(hull, int(count), seed=k)
+        others = [pc.hard_distance(pts) for j, pc in enumerate(pieces) if j != k]
+        samples.append(pts if not others else pts[np.min(others, axis=0) > -1e-9])
+    pts = np.concatenate(samples)
+    outside = np.maximum(0.0, -trimesh.proximity.signed_distance(mesh, pts))  # trimesh: positive inside
+    return float(np.quantile(outside, 0.99)), float(outside.max())
 
 
 def _pieces_fit(pieces: list[NDArray], mesh: trimesh.Trimesh) -> str | None:

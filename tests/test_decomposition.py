@@ -183,3 +183,20 @@ def test_timeouts_fall_back_to_the_hull_and_retry_with_more_time(tmp_path, monke
     assert len(calls) == 2
     convex._decompose(mesh, 0.05, 16, max_seconds=20.0)  # more time: try again
     assert len(calls) == 4
+
+
+def test_decomposition_error_of_an_l_shape():
+    """L = [0,2]×[0,1] ∪ [0,1]×[0,2] (× [0,1] in z, scaled to 5 cm): exact pieces have no error; its
+    hull bridges the inner corner, the farthest bridged point (1.5, 1.5) lying 1/2 from the L (from
+    (1.5, 1) and (1, 1.5))."""
+    s = 0.05
+    a = trimesh.creation.box(bounds=[[0, 0, 0], [2 * s, s, s]])
+    b = trimesh.creation.box(bounds=[[0, s, 0], [s, 2 * s, s]])
+    from regrasp_casadi.mesh_repair import union_of_shells
+
+    ell = union_of_shells([a, b])
+    exact = [convex.simplify_piece(m.vertices) for m in (a, b)]
+    assert convex.decomposition_error(ell, exact)[1] < 1e-9
+    p99, worst = convex.decomposition_error(ell, [convex.simplify_piece(ell.vertices)])
+    assert 0.95 * s / 2 <= worst <= s / 2 + 1e-12
+    assert p99 <= worst
