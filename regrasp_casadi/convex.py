@@ -5,10 +5,16 @@ values h_i = max_v n_i·v over its hull vertices, so the polytope always contain
 distance* ``max_i (n_i·p − h_i)`` is the exact signed distance inside C and a lower bound outside; the
 smooth CasADi distance built on it lives in `regrasp_casadi.signed_distance`.
 
-Non-convex meshes are split by coacd once and the pieces cached on disk, keyed by the mesh's content and
-the decomposition parameters (`cache_dir()`, `decomposition_count()`).
+`convex_pieces` handles each shell of a mesh on its own: a convex shell, or one whose hull is within
+`DEFAULT_HULL_TOLERANCE` (1 mm) of it and at most `HULL_VOLUME_TOLERANCE` (2 %) larger (`is_near_convex`),
+is one piece, its hull; other shells are split by coacd once and the pieces cached on disk, keyed by the
+mesh's content and the decomposition parameters (`cache_dir()`, `decomposition_count()`). A cache file
+stores the mesh hash and the parameters and is checked against them and against the mesh on load. coacd
+runs in a child process under a time cap (`DEFAULT_MAX_SECONDS`, then `FALLBACK_COACD`, then the hull),
+with a progress bar on a terminal. Degenerate pieces (flat or collinear points) are dropped with a
+warning. `decomposition_error` measures how far the pieces' union reaches beyond the mesh.
 
-Only numpy, trimesh and coacd (imported when a decomposition runs) are used here; no CasADi.
+Only numpy, trimesh, scipy and coacd (in the child process) are used here; no CasADi.
 
     >>> pieces = convex_pieces(mesh, convex=None)          # tuple[ConvexPiece, ...], object frame, m
     >>> N, H = select_local_planes(pieces, p_object_tip)    # (2, 16, 3), (2, 16): planes near the tip
@@ -259,7 +265,7 @@ def _mesh_hash(mesh: trimesh.Trimesh) -> str:
     return h.hexdigest()
 
 
-def hull_error(mesh: trimesh.Trimesh, n_samples: int = 2000) -> tuple[float, float]:
+def hull_error(mesh: trimesh.Trimesh, n_samples: int = 5000) -> tuple[float, float]:
     """How far a watertight mesh is from convex: ((V_hull − V)/V, largest distance in m from
     `n_samples` area-uniform samples of its convex hull's surface (seed 0) to the mesh)."""
     hull = mesh.convex_hull
@@ -271,7 +277,7 @@ def hull_error(mesh: trimesh.Trimesh, n_samples: int = 2000) -> tuple[float, flo
 
 def is_near_convex(mesh: trimesh.Trimesh, tolerance: float = DEFAULT_HULL_TOLERANCE) -> bool:
     """True if the mesh's convex hull can stand for it: (V_hull − V)/V ≤ `HULL_VOLUME_TOLERANCE` and every
-    one of 2000 hull-surface samples lies within `tolerance` (m) of the mesh (see `hull_error`)."""
+    one of 5000 hull-surface samples lies within `tolerance` (m) of the mesh (see `hull_error`)."""
     if tolerance <= 0:
         return False
     hull = mesh.convex_hull
