@@ -194,7 +194,7 @@ def sweep(name: str, mesh, thresholds: list[float], max_seconds: float) -> dict:
               file=sys.stderr, flush=True)
     chosen = rows[-1]["threshold"]
     for a, b in zip(rows, rows[1:], strict=False):
-        if b["overcover_p99_mm"] > 0.75 * a["overcover_p99_mm"]:
+        if b["overcover_p99_mm"] >= 0.75 * a["overcover_p99_mm"]:
             chosen = a["threshold"]
             break
     return {"object": name, "rows": rows, "chosen_threshold": chosen}

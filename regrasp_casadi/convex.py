@@ -484,6 +484,9 @@ def convex_pieces(
     """
     groups = shells(mesh)
     parts = [mesh] if len(groups) == 1 else [mesh.submesh([g], append=True, repair=False) for g in groups]
+    if len(parts) > 1:
+        log.info("%s: %d shells (face-connected parts), each split into convex pieces on its own", name,
+                 len(parts))
     vertex_sets: list[NDArray] = []
     for k, part in enumerate(parts):
         use_hull = convex

@@ -35,6 +35,8 @@ __all__ = ["from_manifold", "genus", "repair_shells", "self_intersections", "she
 log = logging.getLogger(__name__)
 
 _EDGES = ((0, 1), (1, 2), (2, 0))
+_CHUNK = 100_000
+"""Triangle pairs tested at once by `self_intersections`."""
 
 
 def shells(mesh: trimesh.Trimesh) -> list[NDArray[np.int64]]:
@@ -153,9 +155,10 @@ def self_intersections(mesh: trimesh.Trimesh, eps: float | None = None) -> NDArr
     if eps is None:
         eps = 1e-9 * float(np.linalg.norm(mesh.extents))
     i, j = _candidate_pairs(tris, faces, eps)
-    if len(i) == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    hit = _triangles_intersect(tris[i], tris[j], eps)
+    hit = np.zeros(len(i), dtype=bool)
+    for start in range(0, len(i), _CHUNK):  # bounded memory on large meshes
+        k = slice(start, start + _CHUNK)
+        hit[k] = _triangles_intersect(tris[i[k]], tris[j[k]], eps)
     return np.stack([i[hit], j[hit]], axis=1)
 
 
@@ -205,11 +208,15 @@ def union_of_shells(parts: list[trimesh.Trimesh]) -> trimesh.Trimesh:
 
 
 def _nested(parts: list[trimesh.Trimesh]) -> bool:
-    """True if a vertex of one shell lies strictly inside another shell."""
+    """True if a vertex of one shell lies inside another shell (shells that do not cross each other lie
+    wholly inside or outside one another, so one vertex per shell decides)."""
+    firsts = np.array([part.vertices[0] for part in parts])
     for a, outer in enumerate(parts):
-        for b, inner in enumerate(parts):
-            if a != b and bool(outer.contains(inner.vertices[:1])[0]):
-                return True
+        others = np.delete(firsts, a, axis=0)
+        lo, hi = outer.bounds
+        maybe = np.all((others >= lo) & (others <= hi), axis=1)
+        if maybe.any() and bool(outer.contains(others[maybe]).any()):
+            return True
     return False
 
 
