@@ -35,7 +35,6 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import QhullError
 
 from regrasp_casadi.errors import MeshError
 from regrasp_casadi.mesh_repair import shells
@@ -434,7 +433,7 @@ def _piece_or_none(vertices: NDArray, max_planes: int, edge_planes: bool = True)
         piece = simplify_piece(v, max_planes)
         if edge_planes:
             piece = add_edge_planes(piece)
-    except (QhullError, ValueError, IndexError, ZeroDivisionError):
+    except (RuntimeError, ValueError, IndexError, ZeroDivisionError):  # QhullError is a RuntimeError
         return None
     ok = np.all(np.isfinite(piece.normals)) and np.all(np.isfinite(piece.offsets))
     return piece if ok else None
