@@ -231,41 +231,25 @@ def sweep(name: str, mesh, thresholds: list[float], max_seconds: float) -> dict:
     return {"object": name, "rows": rows, "chosen_threshold": chosen}
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
-                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    ap.add_argument("--n", type=int, default=3000, help="surface samples (and as many per shell side)")
-    ap.add_argument("--thresholds", type=float, nargs="+", default=[0.05], help="coacd thresholds (YCB)")
-    ap.add_argument("--no-ycb", action="store_true")
-    ap.add_argument("--objects", nargs="+", help="only these generated objects / YCB names")
-    ap.add_argument("--sweep", type=float, nargs="+", metavar="T",
-                    help="also decompose each non-convex generated object at these coacd thresholds")
-    ap.add_argument("--max-seconds", type=float, default=convex.DEFAULT_MAX_SECONDS,
-                    help="time cap of one sweep decomposition, s")
-    ap.add_argument("--use-cache", action="store_true", help="use the user's decomposition cache")
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "geometry.json"))
-    args = ap.parse_args()
-    if not args.use_cache:
-        os.environ["REGRASP_CACHE_DIR"] = tempfile.mkdtemp(prefix="regrasp_bench_cache_")
+def _cases(args) -> list[tuple[str, object]]:
+    """(name, constructor) of the generated objects and YCB meshes asked for."""
     cases = [(k, v) for k, v in GENERATED.items() if not args.objects or k in args.objects]
-    if not args.no_ycb:
-        for nm in YCB_NAMES:
-            if args.objects and nm not in args.objects:
-                continue
-            path = YCB / nm / "mesh.obj"
-            if not path.is_file():
-                print(f"skipping {nm}: {path} not present")
-                continue
-            for th in args.thresholds:
-                cases.append((f"{nm} (t={th:g})", lambda p=path, t=th: ObjectModel.from_mesh(p, threshold=t)))
-    results = []
-    sweeps = []
-    for name, make in cases:
-        r = evaluate(name, make, args.n)
-        results.append(r)
-        print(f"done {name}: surface p99 {r['surface']['p99_mm']:.2f} mm", file=sys.stderr, flush=True)
-        if args.sweep and r["hull_distance_mm"] > 1e-6 and name in GENERATED:
-            sweeps.append(sweep(name, make().mesh, args.sweep, args.max_seconds))
+    if args.no_ycb:
+        return cases
+    for nm in YCB_NAMES:
+        path = YCB / nm / "mesh.obj"
+        if args.objects and nm not in args.objects:
+            continue
+        if not path.is_file():
+            print(f"skipping {nm}: {path} not present")
+            continue
+        for th in args.thresholds:
+            cases.append((f"{nm} (t={th:g})", lambda p=path, t=th: ObjectModel.from_mesh(p, threshold=t)))
+    return cases
+
+
+def print_decomposition(results: list[dict], sweeps: list[dict]) -> None:
+    """Markdown tables: the decomposition of each object, and the threshold sweeps."""
     hdr = ("| object | genus | hull: excess % / dist mm | pieces | planes | build s | over-cover p99/max mm | "
            "surface p99/max mm | outside p99/max mm |")
     print(hdr)
@@ -286,6 +270,34 @@ def main() -> None:
                       f"{row['overcover_p99_mm']:.2f}/{row['overcover_max_mm']:.2f} | "
                       f"{'yes' if row['threshold'] == sw['chosen_threshold'] else ''} |")
     print()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap.add_argument("--n", type=int, default=3000, help="surface samples (and as many per shell side)")
+    ap.add_argument("--thresholds", type=float, nargs="+", default=[0.05], help="coacd thresholds (YCB)")
+    ap.add_argument("--no-ycb", action="store_true")
+    ap.add_argument("--objects", nargs="+", help="only these generated objects / YCB names")
+    ap.add_argument("--sweep", type=float, nargs="+", metavar="T",
+                    help="also decompose each non-convex generated object at these coacd thresholds")
+    ap.add_argument("--max-seconds", type=float, default=convex.DEFAULT_MAX_SECONDS,
+                    help="time cap of one sweep decomposition, s")
+    ap.add_argument("--use-cache", action="store_true", help="use the user's decomposition cache")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "geometry.json"))
+    args = ap.parse_args()
+    if not args.use_cache:
+        os.environ["REGRASP_CACHE_DIR"] = tempfile.mkdtemp(prefix="regrasp_bench_cache_")
+    cases = _cases(args)
+    results = []
+    sweeps = []
+    for name, make in cases:
+        r = evaluate(name, make, args.n)
+        results.append(r)
+        print(f"done {name}: surface p99 {r['surface']['p99_mm']:.2f} mm", file=sys.stderr, flush=True)
+        if args.sweep and r["hull_distance_mm"] > 1e-6 and name in GENERATED:
+            sweeps.append(sweep(name, make().mesh, args.sweep, args.max_seconds))
+    print_decomposition(results, sweeps)
     hdr = ("| object | pieces | planes | decomp s | surface p50/95/99/max mm | hard / all-planes p99 mm | "
            "inside p99/max mm | outside p99/max mm | out excess / bound mm | sign err (>1 mm) | "
            "f call µs | f+grad call µs | f+grad VM µs/pt SX / MX |")

@@ -460,6 +460,7 @@ def convex_pieces(
     threshold: float = DEFAULT_THRESHOLD,
     max_planes_per_piece: int = DEFAULT_MAX_PLANES,
     max_pieces: int = DEFAULT_MAX_PIECES,
+    *,
     hull_tolerance: float = DEFAULT_HULL_TOLERANCE,
     max_seconds: float = DEFAULT_MAX_SECONDS,
     name: str = "mesh",

@@ -171,6 +171,7 @@ class ObjectModel:
         max_planes_per_piece: int = DEFAULT_MAX_PLANES,
         max_pieces: int = DEFAULT_MAX_PIECES,
         spec: dict | None = None,
+        *,
         hull_tolerance: float = DEFAULT_HULL_TOLERANCE,
         max_seconds: float = DEFAULT_MAX_SECONDS,
     ) -> ObjectModel:
@@ -211,6 +212,7 @@ class ObjectModel:
         threshold: float = DEFAULT_THRESHOLD,
         max_planes_per_piece: int = DEFAULT_MAX_PLANES,
         max_pieces: int = DEFAULT_MAX_PIECES,
+        *,
         hull_tolerance: float = DEFAULT_HULL_TOLERANCE,
         max_seconds: float = DEFAULT_MAX_SECONDS,
     ) -> ObjectModel:
@@ -311,7 +313,7 @@ class ObjectModel:
                               max_planes_per_piece, convex=False, threshold=threshold)
 
     @classmethod
-    def bowl(cls, radius: float = 0.06, wall: float = 0.004, threshold: float = DEFAULT_THRESHOLD,
+    def bowl(cls, radius: float = 0.06, wall: float = 0.004, *, threshold: float = DEFAULT_THRESHOLD,
              max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
         """Thin-walled hemispherical bowl, 0.12 m across, 4 mm wall, open to +z; see `shapes.bowl_mesh`."""
         dims = {"radius": float(radius), "wall": float(wall)}
@@ -319,7 +321,7 @@ class ObjectModel:
                               max_planes_per_piece, convex=False, threshold=threshold)
 
     @classmethod
-    def cup(cls, radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004,
+    def cup(cls, radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004, *,
             threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
             ) -> ObjectModel:
         """Thin-walled cylindrical cup, 0.08 m across, 0.1 m tall, 4 mm walls; see `shapes.cup_mesh`."""
@@ -330,7 +332,7 @@ class ObjectModel:
 
     @classmethod
     def mug(cls, radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004,
-            handle_radius: float = 0.028, handle_thickness: float = 0.01,
+            handle_radius: float = 0.028, handle_thickness: float = 0.01, *,
             threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
             ) -> ObjectModel:
         """`cup` with a handle (genus 1), 0.11 m across with the handle; see `shapes.mug_mesh`."""
@@ -342,7 +344,7 @@ class ObjectModel:
 
     @classmethod
     def flat_tool(cls, length: float = 0.20, thickness: float = 0.015, handle_width: float = 0.025,
-                  head_length: float = 0.08, head_width: float = 0.045, corner_radius: float = 0.01,
+                  head_length: float = 0.08, head_width: float = 0.045, corner_radius: float = 0.01, *,
                   threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
                   ) -> ObjectModel:
         """Flat spatula-like tool, 0.2 m long, 15 mm thick, in the x-y plane; see `shapes.flat_tool_mesh`."""
@@ -353,7 +355,7 @@ class ObjectModel:
                               max_planes_per_piece, convex=False, threshold=threshold)
 
     @classmethod
-    def holed_box(cls, extents=(0.05, 0.07, 0.09), hole_radius: float = 0.002,
+    def holed_box(cls, extents=(0.05, 0.07, 0.09), hole_radius: float = 0.002, *,
                   threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
                   ) -> ObjectModel:
         """Box with three 4 mm tunnels through it (a scan artefact, genus 3); see `shapes.holed_box_mesh`."""

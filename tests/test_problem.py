@@ -243,3 +243,15 @@ def test_new_primitives_are_known_to_problem_files(folder, primitive):
     with pytest.raises(ProblemFileError, match=rf"^{path}: object: unknown key\(s\) no_such_size \(allowed: "
                                                rf"primitive, .*threshold, max_planes_per_piece\)"):
         RegraspProblem.load(path)
+
+
+def test_problem_files_know_every_primitive_and_its_dimensions():
+    import inspect
+
+    from regrasp_casadi import problem
+    from regrasp_casadi.objects import PRIMITIVES, ObjectModel
+
+    assert problem._PRIMITIVES == PRIMITIVES
+    for kind, dims in problem._PRIMITIVE_DIMENSIONS.items():
+        params = inspect.signature(getattr(ObjectModel, kind)).parameters
+        assert set(dims) <= set(params), kind
