@@ -8,12 +8,43 @@ value over the exact distance outside (to compare with the stated bias bound τ�
 evaluation time of the CasADi function (value; value + gradient) per point: through a Python call with
 one point, and inside CasADi's VM (`map` over 1000 points, per point).
 
+Per object it also reports the decomposition: genus, how far the mesh is from convex (hull volume excess
+and the largest distance of 5000 hull-surface samples to the mesh: a shell within 1 mm and 2 % is one
+piece, its hull, `convex.is_near_convex`), pieces, planes, build time (coacd under its time cap) and the
+*over-cover* error, how far the pieces' union reaches beyond the mesh (`convex.decomposition_error`:
+where hulls bridge a concavity or fill a cavity). `--sweep T1 T2 ...` decomposes each non-convex
+generated object at those coacd thresholds and picks the first threshold whose successor improves the
+over-cover p99 by less than 25 % (results/geometry_sweep.json).
+
 Targets: surface |smooth − exact| ≤ 0.5 mm for 99 % of samples; no sign error beyond 1 mm; outside,
 smooth − exact ≤ τ·log k_max; one distance+gradient evaluation ≤ 20 µs.
 
     python benchmarks/geometry.py [--n 3000] [--thresholds 0.05 0.02] [--no-ycb] [--use-cache]
+                                  [--objects bowl cup ...] [--sweep 0.1 0.05 0.03 0.02 --max-seconds 240]
 
 Writes benchmarks/results/geometry.json (with CPU, python, casadi, coacd, trimesh versions, git commit).
+
+Decomposition (commit d778465, AMD EPYC, 2 cores shared with ~6 other jobs (load 8–12), so times are
+~3–5× an idle machine's; coacd 1.0.14, threshold 0.05, ≤ 16 pieces):
+
+| object | genus | hull excess % / dist mm | pieces | planes | build s | over-cover p99/max mm | surface p99/max mm |
+|---|---|---|---|---|---|---|---|
+| box, cylinder, sphere (7 cm), capsule | 0 | 0 / 0 (hull) | 1 | 62–320 | < 0.1 | 0 | 0.14–1.47 / 0.28–1.72 |
+| bottle / banana | 0 | 9.4 / 9.2, 23.8 / 14.9 | 2 / 3 | 320 / 480 | 2.0 / 3.6 | 0.03 / 1.50 | 0.32 / 1.58 |
+| bowl (4 mm wall) | 0 | 447 / 54.6 | 16 | 2560 | 66.7 | 7.64 / 8.99 | 3.92 / 3.97 |
+| cup / mug (4 mm walls) | 0 / 1 | 349 / 34.2, 382 / 33.0 | 16 / 16 | 2323 / 2526 | 40.0 / 30.0 | 3.78 / 2.94 | 3.69 / 3.02 |
+| flat tool (20 × 4.5 × 1.5 cm) | 0 | 16.7 / 9.2 | 2 | 269 | 1.1 | 0.00 | 0.32 / 0.47 |
+| holed box (3 tunnels of 4 mm) | 3 | 0.8 / 1.8 | 16 | 1068 | 71.2 | 0.00 / 1.51 | 4.28 / 6.45 |
+| YCB chips can / sugar box / mustard / banana / bleach | 0 | 2.0 / 3.0, 3.6 / 2.2, 14 / 8.6, 55 / 33, 9.8 / 8.5 | 1 / 2 / 4 / 4 / 3 | 83–640 | 1.3–15 | 1.6–4.8 | 1.7–4.2 |
+
+Sweep (thresholds 0.1 / 0.05 / 0.03 / 0.02): the chosen threshold is 0.05 or coarser for every generated
+object (bottle, cup, bowl 0.1; banana, mug, flat tool 0.05; holed box 0.1): finer thresholds do not
+reduce the over-cover error once coacd's 16-piece cap binds (bowl 9.8 → 7.6 → 8.3 → 8.1 mm, cup
+3.7 → 3.8 → 2.7 → 3.3 mm), so the primitives keep the default 0.05. The thin-walled shapes are limited
+by the piece cap, not the threshold. On the holed box coacd at 0.03 and 0.02 ran out of the 240 s cap
+(180 s, then 60 s with `convex.FALLBACK_COACD`) and fell back to the hull. Choosing the threshold this
+way at load time is not the default: each threshold tried is another full coacd run (30–120 s for
+these objects on this machine, 10–35 s for YCB), so it is a benchmark step whose result sets defaults.
 
 Representative result (n = 3000, τ = 0.2 mm, ≤ 64 face planes + ≤ 96 edge/vertex planes per piece; commit
 b591024, Intel Xeon, 2 shared cores, python 3.11.7, casadi 3.8.2, coacd 1.0.14, trimesh 5.2.0; timings
@@ -52,6 +83,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from machine import machine_info  # noqa: E402
 
 from regrasp_casadi import convex, signed_distance  # noqa: E402
+from regrasp_casadi.mesh_repair import genus, shells  # noqa: E402
 from regrasp_casadi.objects import ObjectModel  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -107,6 +139,8 @@ def evaluate(name: str, make, n: int) -> dict:
     obj = make()
     build = time.perf_counter() - t0
     decomposed = convex.decomposition_count() > n_before
+    hull_excess, hull_dist = convex.hull_error(obj.mesh)
+    over_p99, over_max = convex.decomposition_error(obj.mesh, obj.pieces)
     rng = np.random.default_rng(0)
     pts, normals = obj.sample_surface(n, seed=0)
     shell_out = pts + normals * rng.uniform(0.0, 0.03, (n, 1))
@@ -133,6 +167,12 @@ def evaluate(name: str, make, n: int) -> dict:
         "k_max": int(k_max),
         "build_s": build,
         "decomposed": bool(decomposed),
+        "genus": int(genus(obj.mesh)) if len(shells(obj.mesh)) == 1 else None,
+        "hull_volume_excess": hull_excess,
+        "hull_distance_mm": hull_dist * 1e3,
+        "near_convex": bool(convex.is_near_convex(obj.mesh)),
+        "overcover_p99_mm": over_p99 * 1e3,
+        "overcover_max_mm": over_max * 1e3,
         "tau_m": signed_distance.DEFAULT_TAU,
         "bias_bound_mm": obj.bias_bound * 1e3,
         "exact_self_distance_max_m": float(np.abs(ex_surf).max()),
@@ -152,38 +192,112 @@ def evaluate(name: str, make, n: int) -> dict:
     return res
 
 
+GENERATED = {
+    "box": ObjectModel.box,
+    "cylinder": ObjectModel.cylinder,
+    "sphere": ObjectModel.sphere,  # 7 cm across (a baseball)
+    "sphere (320 planes)": lambda: ObjectModel.sphere(max_planes_per_piece=320),
+    "capsule": ObjectModel.capsule,
+    "bottle": ObjectModel.bottle,
+    "banana": ObjectModel.banana,
+    "bowl": ObjectModel.bowl,
+    "cup": ObjectModel.cup,
+    "mug": ObjectModel.mug,
+    "flat_tool": ObjectModel.flat_tool,
+    "holed_box": ObjectModel.holed_box,
+}
+
+
+def sweep(name: str, mesh, thresholds: list[float], max_seconds: float) -> dict:
+    """coacd at each threshold (coarse to fine): pieces, time and over-cover error; the chosen threshold is
+    the first whose successor improves the over-cover p99 by less than 25 % (or the last one)."""
+    rows = []
+    for th in sorted(thresholds, reverse=True):
+        t0 = time.perf_counter()
+        verts = convex._decompose(mesh, th, convex.DEFAULT_MAX_PIECES, max_seconds=max_seconds,
+                                  desc=f"{name} t={th:g}")
+        dt = time.perf_counter() - t0
+        pieces = [convex.simplify_piece(v) for v in verts]
+        p99, worst = convex.decomposition_error(mesh, pieces)
+        rows.append({"threshold": th, "pieces": len(pieces), "time_s": dt, "overcover_p99_mm": p99 * 1e3,
+                     "overcover_max_mm": worst * 1e3})
+        print(f"  sweep {name} t={th:g}: {len(pieces)} pieces, {dt:.1f} s, over-cover p99 {p99 * 1e3:.2f} mm",
+              file=sys.stderr, flush=True)
+    chosen = rows[-1]["threshold"]
+    for a, b in zip(rows, rows[1:], strict=False):
+        if b["overcover_p99_mm"] >= 0.75 * a["overcover_p99_mm"]:
+            chosen = a["threshold"]
+            break
+    return {"object": name, "rows": rows, "chosen_threshold": chosen}
+
+
+def _cases(args) -> list[tuple[str, object]]:
+    """(name, constructor) of the generated objects and YCB meshes asked for."""
+    cases = [(k, v) for k, v in GENERATED.items() if not args.objects or k in args.objects]
+    if args.no_ycb:
+        return cases
+    for nm in YCB_NAMES:
+        path = YCB / nm / "mesh.obj"
+        if args.objects and nm not in args.objects:
+            continue
+        if not path.is_file():
+            print(f"skipping {nm}: {path} not present")
+            continue
+        for th in args.thresholds:
+            cases.append((f"{nm} (t={th:g})", lambda p=path, t=th: ObjectModel.from_mesh(p, threshold=t)))
+    return cases
+
+
+def print_decomposition(results: list[dict], sweeps: list[dict]) -> None:
+    """Markdown tables: the decomposition of each object, and the threshold sweeps."""
+    hdr = ("| object | genus | hull: excess % / dist mm | pieces | planes | build s | over-cover p99/max mm | "
+           "surface p99/max mm | outside p99/max mm |")
+    print(hdr)
+    print("|" + "---|" * (hdr.count("|") - 1))
+    for r in results:
+        print(f"| {r['object']} | {r['genus']} | {100 * r['hull_volume_excess']:.2f} / "
+              f"{r['hull_distance_mm']:.2f}{' (hull)' if r['near_convex'] else ''} | {r['pieces']} | "
+              f"{r['planes']} | {r['build_s']:.1f}{'' if r['decomposed'] else '*'} | "
+              f"{r['overcover_p99_mm']:.2f}/{r['overcover_max_mm']:.2f} | "
+              f"{r['surface']['p99_mm']:.2f}/{r['surface']['max_mm']:.2f} | "
+              f"{r['outside']['p99_mm']:.2f}/{r['outside']['max_mm']:.2f} |")
+    if sweeps:
+        print("\n| object | threshold | pieces | decomp s | over-cover p99/max mm | chosen |")
+        print("|---|---|---|---|---|---|")
+        for sw in sweeps:
+            for row in sw["rows"]:
+                print(f"| {sw['object']} | {row['threshold']:g} | {row['pieces']} | {row['time_s']:.1f} | "
+                      f"{row['overcover_p99_mm']:.2f}/{row['overcover_max_mm']:.2f} | "
+                      f"{'yes' if row['threshold'] == sw['chosen_threshold'] else ''} |")
+    print()
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     ap.add_argument("--n", type=int, default=3000, help="surface samples (and as many per shell side)")
     ap.add_argument("--thresholds", type=float, nargs="+", default=[0.05], help="coacd thresholds (YCB)")
     ap.add_argument("--no-ycb", action="store_true")
+    ap.add_argument("--objects", nargs="+", help="only these generated objects / YCB names")
+    ap.add_argument("--sweep", type=float, nargs="+", metavar="T",
+                    help="also decompose each non-convex generated object at these coacd thresholds")
+    ap.add_argument("--max-seconds", type=float, default=convex.DEFAULT_MAX_SECONDS,
+                    help="time cap of one sweep decomposition, s")
     ap.add_argument("--use-cache", action="store_true", help="use the user's decomposition cache")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "geometry.json"))
     args = ap.parse_args()
     if not args.use_cache:
         os.environ["REGRASP_CACHE_DIR"] = tempfile.mkdtemp(prefix="regrasp_bench_cache_")
-    cases = [
-        ("box", ObjectModel.box),
-        ("cylinder", ObjectModel.cylinder),
-        ("sphere", ObjectModel.sphere),
-        ("sphere (320 planes)", lambda: ObjectModel.sphere(max_planes_per_piece=320)),
-        ("capsule", ObjectModel.capsule),
-        ("bottle", ObjectModel.bottle),
-        ("banana", ObjectModel.banana),
-    ]
-    if not args.no_ycb:
-        for nm in YCB_NAMES:
-            path = YCB / nm / "mesh.obj"
-            if not path.is_file():
-                print(f"skipping {nm}: {path} not present")
-                continue
-            for th in args.thresholds:
-                cases.append((f"{nm} (t={th:g})", lambda p=path, t=th: ObjectModel.from_mesh(p, threshold=t)))
+    cases = _cases(args)
     results = []
+    sweeps = []
     for name, make in cases:
         r = evaluate(name, make, args.n)
         results.append(r)
         print(f"done {name}: surface p99 {r['surface']['p99_mm']:.2f} mm", file=sys.stderr, flush=True)
+        if args.sweep and r["hull_distance_mm"] > 1e-6 and name in GENERATED:
+            sweeps.append(sweep(name, make().mesh, args.sweep, args.max_seconds))
+    print_decomposition(results, sweeps)
     hdr = ("| object | pieces | planes | decomp s | surface p50/95/99/max mm | hard / all-planes p99 mm | "
            "inside p99/max mm | outside p99/max mm | out excess / bound mm | sign err (>1 mm) | "
            "f call µs | f+grad call µs | f+grad VM µs/pt SX / MX |")
@@ -208,7 +322,9 @@ def main() -> None:
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"machine": info, "n_samples": args.n, "thresholds": args.thresholds,
-                               "results": results}, indent=1))
+                               "near_convex_rule": {"hull_distance_m": convex.DEFAULT_HULL_TOLERANCE,
+                                                    "hull_volume_excess": convex.HULL_VOLUME_TOLERANCE},
+                               "results": results, "sweeps": sweeps}, indent=1))
 
 
 if __name__ == "__main__":

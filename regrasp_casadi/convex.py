@@ -5,10 +5,16 @@ values h_i = max_v n_i·v over its hull vertices, so the polytope always contain
 distance* ``max_i (n_i·p − h_i)`` is the exact signed distance inside C and a lower bound outside; the
 smooth CasADi distance built on it lives in `regrasp_casadi.signed_distance`.
 
-Non-convex meshes are split by coacd once and the pieces cached on disk, keyed by the mesh's content and
-the decomposition parameters (`cache_dir()`, `decomposition_count()`).
+`convex_pieces` handles each shell of a mesh on its own: a convex shell, or one whose hull is within
+`DEFAULT_HULL_TOLERANCE` (1 mm) of it and at most `HULL_VOLUME_TOLERANCE` (2 %) larger (`is_near_convex`),
+is one piece, its hull; other shells are split by coacd once and the pieces cached on disk, keyed by the
+mesh's content and the decomposition parameters (`cache_dir()`, `decomposition_count()`). A cache file
+stores the mesh hash and the parameters and is checked against them and against the mesh on load. coacd
+runs in a child process under a time cap (`DEFAULT_MAX_SECONDS`, then `FALLBACK_COACD`, then the hull),
+with a progress bar on a terminal. Degenerate pieces (flat or collinear points) are dropped with a
+warning. `decomposition_error` measures how far the pieces' union reaches beyond the mesh.
 
-Only numpy, trimesh and coacd (imported when a decomposition runs) are used here; no CasADi.
+Only numpy, trimesh, scipy and coacd (in the child process) are used here; no CasADi.
 
     >>> pieces = convex_pieces(mesh, convex=None)          # tuple[ConvexPiece, ...], object frame, m
     >>> N, H = select_local_planes(pieces, p_object_tip)    # (2, 16, 3), (2, 16): planes near the tip
@@ -17,10 +23,12 @@ Only numpy, trimesh and coacd (imported when a decomposition runs) are used here
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import logging
 import os
 import pathlib
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -28,12 +36,18 @@ import numpy as np
 import trimesh
 from numpy.typing import ArrayLike, NDArray
 
+from regrasp_casadi.errors import MeshError
+from regrasp_casadi.mesh_repair import shells
+
 __all__ = [
     "ConvexPiece",
     "DEFAULT_THRESHOLD",
     "DEFAULT_MAX_PLANES",
     "DEFAULT_EDGE_PLANES",
     "DEFAULT_MAX_PIECES",
+    "DEFAULT_HULL_TOLERANCE",
+    "DEFAULT_MAX_SECONDS",
+    "HULL_VOLUME_TOLERANCE",
     "LOCAL_PIECES",
     "LOCAL_PLANES",
     "add_edge_planes",
@@ -41,6 +55,9 @@ __all__ = [
     "coarse_pieces",
     "convex_pieces",
     "decomposition_count",
+    "decomposition_error",
+    "hull_error",
+    "is_near_convex",
     "select_local_planes",
     "simplify_piece",
 ]
@@ -55,6 +72,14 @@ DEFAULT_EDGE_PLANES = 96
 """Extra edge/vertex support planes per piece (see `add_edge_planes`)."""
 DEFAULT_MAX_PIECES = 16
 """Cap on the number of convex pieces coacd may return (its `max_convex_hull`)."""
+DEFAULT_HULL_TOLERANCE = 1e-3
+"""A shell whose convex hull is within this distance (m) of it is one piece (see `is_near_convex`)."""
+HULL_VOLUME_TOLERANCE = 0.02
+"""... and whose hull's volume exceeds its own by at most this fraction."""
+DEFAULT_MAX_SECONDS = 300.0
+"""Time cap of one coacd decomposition, s (then cheaper settings, then the hull; see `_decompose`)."""
+FALLBACK_COACD = {"resolution": 500, "mcts_iterations": 30, "mcts_max_depth": 2, "mcts_nodes": 10}
+"""coacd settings of the second, cheaper attempt after a timeout."""
 LOCAL_PIECES = 2
 """Pieces in a local plane set (see `select_local_planes`)."""
 LOCAL_PLANES = 16
@@ -239,36 +264,194 @@ def _mesh_hash(mesh: trimesh.Trimesh) -> str:
     return h.hexdigest()
 
 
-def _decompose(mesh: trimesh.Trimesh, threshold: float, max_pieces: int, seed: int = 0) -> list[NDArray]:
-    """coacd convex pieces (list of (v, 3) vertex arrays, m), cached on disk by content + parameters."""
+def hull_error(mesh: trimesh.Trimesh, n_samples: int = 5000) -> tuple[float, float]:
+    """How far a watertight mesh is from convex: ((V_hull − V)/V, largest distance in m from
+    `n_samples` area-uniform samples of its convex hull's surface (seed 0) to the mesh)."""
+    hull = mesh.convex_hull
+    excess = float((hull.volume - mesh.volume) / mesh.volume)
+    pts, _ = trimesh.sample.sample_surface(hull, int(n_samples), seed=0)
+    _, dist, _ = trimesh.proximity.closest_point(mesh, pts)
+    return excess, float(np.max(dist))
+
+
+def is_near_convex(mesh: trimesh.Trimesh, tolerance: float = DEFAULT_HULL_TOLERANCE) -> bool:
+    """True if the mesh's convex hull can stand for it: (V_hull − V)/V ≤ `HULL_VOLUME_TOLERANCE` and every
+    one of 5000 hull-surface samples lies within `tolerance` (m) of the mesh (see `hull_error`)."""
+    if tolerance <= 0:
+        return False
+    hull = mesh.convex_hull
+    if (hull.volume - mesh.volume) / mesh.volume > HULL_VOLUME_TOLERANCE:  # cheap test first
+        return False
+    return hull_error(mesh)[1] <= tolerance
+
+
+def decomposition_error(mesh: trimesh.Trimesh, pieces: Sequence[ConvexPiece],
+                        n_samples: int = 3000) -> tuple[float, float]:
+    """How far the union of the pieces reaches beyond the mesh (where hulls bridge a concavity or fill a
+    cavity): (p99, max), m, over area-uniform samples of the union's boundary (each piece's hull surface,
+    less what lies inside another piece) of their distance outside the mesh (0 on or inside it)."""
+    hulls = [trimesh.convex.convex_hull(pc.vertices) for pc in pieces]
+    areas = np.array([h.area for h in hulls])
+    counts = np.maximum(1, np.round(n_samples * areas / areas.sum()).astype(int))
+    samples = []
+    for k, (hull, count) in enumerate(zip(hulls, counts, strict=True)):
+        pts, _ = trimesh.sample.sample_surface(hull, int(count), seed=k)
+        others = [pc.hard_distance(pts) for j, pc in enumerate(pieces) if j != k]
+        samples.append(pts if not others else pts[np.min(others, axis=0) > -1e-9])
+    pts = np.concatenate(samples)
+    outside = np.maximum(0.0, -trimesh.proximity.signed_distance(mesh, pts))  # trimesh: positive inside
+    return float(np.quantile(outside, 0.99)), float(outside.max())
+
+
+def _pieces_fit(pieces: list[NDArray], mesh: trimesh.Trimesh) -> str | None:
+    """Why cached pieces cannot be this mesh's (None if they can): every mesh vertex must lie in the union
+    of the pieces' hulls and every piece vertex in the mesh's bounding box, within 1 mm + 2 % of its size."""
+    tol = 1e-3 + 0.02 * float(np.max(mesh.extents))
+    if not pieces or any(v.ndim != 2 or v.shape[1] != 3 or not np.all(np.isfinite(v)) for v in pieces):
+        return "pieces are not finite (v, 3) arrays"
+    lo, hi = mesh.bounds
+    outside = max(float(np.max(np.maximum(lo - v, v - hi))) for v in pieces)
+    if outside > tol:
+        return f"a piece reaches {outside * 1e3:.1f} mm outside the mesh's bounding box"
+    hulls = [pc for pc in (_piece_or_none(v, 10**6, edge_planes=False) for v in pieces) if pc is not None]
+    if not hulls:
+        return "no piece spans a volume"
+    gap = float(np.max(np.min([pc.hard_distance(mesh.vertices) for pc in hulls], axis=0)))
+    if gap > tol:
+        return f"a mesh vertex lies {gap * 1e3:.1f} mm outside every piece"
+    return None
+
+
+def _read_cache(path: pathlib.Path, mesh_hash: str, params: dict, mesh: trimesh.Trimesh,
+                max_seconds: float) -> list[NDArray] | None:
+    """The pieces in a cache file if it holds this mesh's decomposition with these parameters, else None
+    (with a warning naming the file and the reason, except when the file is absent)."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path) as data:
+            pieces = [np.array(data[f"piece{i}"], dtype=float) for i in range(int(data["n"]))]
+            stored_hash = str(data["mesh_sha256"]) if "mesh_sha256" in data else None
+            stored_params = json.loads(str(data["params"])) if "params" in data else None
+            budget = float(data["timed_out_after_s"]) if "timed_out_after_s" in data else None
+    except Exception as exc:
+        log.warning("ignoring unreadable cache file %s (%s: %s); decomposing again", path,
+                    type(exc).__name__, exc)
+        return None
+    if stored_hash is not None and (stored_hash != mesh_hash or stored_params != params):
+        what = "mesh hash" if stored_hash != mesh_hash else "parameters"
+        log.warning("cache file %s holds another decomposition (its %s differ); decomposing again", path,
+                    what)
+        return None
+    reason = _pieces_fit(pieces, mesh)
+    if reason is not None:
+        log.warning("cache file %s does not fit this mesh (%s); decomposing again", path, reason)
+        return None
+    if budget is not None and max_seconds > budget:
+        log.info("cache file %s is a fallback after coacd timed out at %g s; trying again with %g s",
+                 path, budget, max_seconds)
+        return None
+    if stored_hash is None:  # a file of an older version: record what it belongs to
+        _write_cache(path, pieces, mesh_hash, params, None)
+    log.debug("convex decomposition cache hit %s", path)
+    return pieces
+
+
+def _write_cache(path: pathlib.Path, pieces: list[NDArray], mesh_hash: str, params: dict,
+                 timed_out_after_s: float | None) -> None:
+    from regrasp_casadi.files import atomic_write_bytes
+
+    buf = io.BytesIO()
+    extra = {} if timed_out_after_s is None else {"timed_out_after_s": float(timed_out_after_s)}
+    np.savez(buf, n=len(pieces), mesh_sha256=mesh_hash, params=json.dumps(params, sort_keys=True),
+             **extra, **{f"piece{i}": v for i, v in enumerate(pieces)})
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_bytes(path, buf.getvalue())
+    except OSError as exc:
+        log.warning("could not write decomposition cache %s: %s", path, exc)
+
+
+def _decompose(mesh: trimesh.Trimesh, threshold: float, max_pieces: int, seed: int = 0,
+               max_seconds: float = DEFAULT_MAX_SECONDS, desc: str = "coacd") -> list[NDArray]:
+    """coacd convex pieces (list of (v, 3) vertex arrays, m), cached on disk by content + parameters.
+
+    The cache file stores the mesh hash and the parameters and is checked against them (and against the
+    mesh's extent) on load. coacd runs in a child process with a progress bar: after 3/4 of `max_seconds`
+    it is stopped and run again with cheaper settings (`FALLBACK_COACD`), and if that also runs out, the
+    mesh's convex hull is used (with warnings); such a fallback is cached with the time it was given.
+    """
     import coacd
+
+    from regrasp_casadi.coacd_worker import CoacdError, run_coacd
 
     params = {"threshold": float(threshold), "max_convex_hull": int(max_pieces), "seed": int(seed),
               "coacd": getattr(coacd, "__version__", "?"), "format": 1}
-    key = hashlib.sha256((_mesh_hash(mesh) + json.dumps(params, sort_keys=True)).encode()).hexdigest()
+    mesh_hash = _mesh_hash(mesh)
+    key = hashlib.sha256((mesh_hash + json.dumps(params, sort_keys=True)).encode()).hexdigest()
     path = cache_dir() / "coacd" / f"{key}.npz"
-    if path.is_file():
-        try:
-            with np.load(path) as data:
-                pieces = [data[f"piece{i}"] for i in range(int(data["n"]))]
-            log.debug("convex decomposition cache hit %s", path)
-            return pieces
-        except Exception as exc:  # corrupt cache file: recompute
-            log.warning("ignoring unreadable cache file %s (%s)", path, exc)
-    coacd.set_log_level("error")
-    parts = coacd.run_coacd(coacd.Mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces)),
-                            threshold=float(threshold), max_convex_hull=int(max_pieces), seed=int(seed))
-    _COUNTERS["decompositions"] += 1
-    pieces = [np.asarray(v, float) for v, _ in parts]
-    log.info("coacd decomposition: %d pieces (threshold %g), cached at %s", len(pieces), threshold, path)
+    cached = _read_cache(path, mesh_hash, params, mesh, max_seconds)
+    if cached is not None:
+        return cached
+    kwargs = {"threshold": float(threshold), "max_convex_hull": int(max_pieces), "seed": int(seed)}
+    t0 = time.monotonic()
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-        np.savez(tmp, n=len(pieces), **{f"piece{i}": v for i, v in enumerate(pieces)})
-        os.replace(tmp, path)
-    except OSError as exc:
-        log.warning("could not write decomposition cache %s: %s", path, exc)
+        pieces = run_coacd(mesh.vertices, mesh.faces, kwargs, 0.75 * max_seconds, desc)
+        timed_out = None
+        if pieces is None:
+            log.warning("coacd (threshold %g) did not finish in %.0f s; trying cheaper settings %s",
+                        threshold, 0.75 * max_seconds, FALLBACK_COACD)
+            rest = max(1.0, max_seconds - (time.monotonic() - t0))
+            pieces = run_coacd(mesh.vertices, mesh.faces, {**kwargs, **FALLBACK_COACD}, rest, desc)
+            timed_out = max_seconds
+    except CoacdError as exc:
+        raise MeshError(f"convex decomposition failed: {exc}") from None
+    _COUNTERS["decompositions"] += 1
+    if pieces is None:
+        log.warning("coacd did not finish within %g s; using the convex hull as the only piece", max_seconds)
+        pieces = [np.array(mesh.convex_hull.vertices)]
+    log.info("coacd decomposition: %d pieces (threshold %g) in %.1f s, cached at %s", len(pieces), threshold,
+             time.monotonic() - t0, path)
+    _write_cache(path, pieces, mesh_hash, params, timed_out)
     return pieces
+
+
+def _piece_or_none(vertices: NDArray, max_planes: int, edge_planes: bool = True) -> ConvexPiece | None:
+    """The simplified (and edge-tightened) piece of `vertices`, or None if they span no volume (flat,
+    collinear or too few points: Qhull fails or the hull is degenerate)."""
+    v = np.asarray(vertices, dtype=float)
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) < 4 or not np.all(np.isfinite(v)):
+        return None
+    centred = v - v.mean(axis=0)
+    size = float(np.max(np.ptp(v, axis=0)))
+    thinnest = np.linalg.svd(centred, full_matrices=False)[2][-1]  # the direction of least spread
+    if not size > 0 or float(np.ptp(centred @ thinnest)) <= 1e-6 * size:
+        return None
+    try:
+        if not trimesh.convex.convex_hull(v).is_volume:
+            return None
+        piece = simplify_piece(v, max_planes)
+        if edge_planes:
+            piece = add_edge_planes(piece)
+    except (RuntimeError, ValueError, IndexError, ZeroDivisionError):  # QhullError is a RuntimeError
+        return None
+    ok = np.all(np.isfinite(piece.normals)) and np.all(np.isfinite(piece.offsets))
+    return piece if ok else None
+
+
+def _pieces_of(vertex_sets: list[NDArray], max_planes: int, fallback: NDArray,
+               what: str) -> list[ConvexPiece]:
+    """Pieces of each vertex set; degenerate ones are dropped (logged). If none is left, the hull of
+    `fallback` (m) is the only piece."""
+    pieces = [_piece_or_none(v, max_planes) for v in vertex_sets]
+    kept = [pc for pc in pieces if pc is not None]
+    if len(kept) < len(pieces):
+        log.warning("%s: dropped %d degenerate convex piece(s) of %d (flat or collinear points; no volume)",
+                    what, len(pieces) - len(kept), len(pieces))
+    if not kept:
+        log.warning("%s: no convex piece with volume; using the convex hull", what)
+        kept = [add_edge_planes(simplify_piece(fallback, max_planes))]
+    return kept
 
 
 def convex_pieces(
@@ -277,20 +460,48 @@ def convex_pieces(
     threshold: float = DEFAULT_THRESHOLD,
     max_planes_per_piece: int = DEFAULT_MAX_PLANES,
     max_pieces: int = DEFAULT_MAX_PIECES,
+    *,
+    hull_tolerance: float = DEFAULT_HULL_TOLERANCE,
+    max_seconds: float = DEFAULT_MAX_SECONDS,
+    name: str = "mesh",
 ) -> tuple[ConvexPiece, ...]:
     """The convex pieces of a watertight mesh (metres, object frame), each simplified and edge-tightened.
 
+    Each shell (face-connected component; shells touching only at a vertex are separate) is handled on
+    its own, so two convex shells give two pieces. Degenerate pieces (no volume) are dropped with a
+    warning.
+
     Args:
         mesh: watertight mesh, m, object frame.
-        convex: True: one piece, the hull; False: coacd (cached); None: decide by `mesh.is_convex`.
+        convex: True: each shell is one piece, its hull; False: coacd (cached); None: the hull for a
+            convex shell or one within `hull_tolerance` of convex (`is_near_convex`), else coacd.
         threshold: coacd concavity threshold.
         max_planes_per_piece: face-plane cap of each piece (`simplify_piece`), before `add_edge_planes`.
-        max_pieces: cap on coacd pieces.
+        max_pieces: cap on coacd pieces (per shell).
+        hull_tolerance: largest hull-to-mesh distance, m, at which a shell's hull is used (0: never).
+        max_seconds: time cap of one coacd decomposition, s (see `_decompose`).
+        name: the object's name, for messages and the progress bar.
     """
-    if convex is None:
-        convex = bool(mesh.is_convex)
-    verts = [np.asarray(mesh.vertices)] if convex else _decompose(mesh, threshold, max_pieces)
-    return tuple(add_edge_planes(simplify_piece(v, max_planes_per_piece)) for v in verts)
+    groups = shells(mesh)
+    parts = [mesh] if len(groups) == 1 else [mesh.submesh([g], append=True, repair=False) for g in groups]
+    if len(parts) > 1:
+        log.info("%s: %d shells (face-connected parts), each split into convex pieces on its own", name,
+                 len(parts))
+    vertex_sets: list[NDArray] = []
+    for k, part in enumerate(parts):
+        use_hull = convex
+        if use_hull is None:
+            use_hull = bool(part.is_convex)
+            if not use_hull and is_near_convex(part, hull_tolerance):
+                log.info("%s: within %g mm of its convex hull; one piece, no decomposition", name,
+                         hull_tolerance * 1e3)
+                use_hull = True
+        if use_hull:
+            vertex_sets.append(np.asarray(part.vertices))
+        else:
+            desc = f"decomposing {name}" + (f" (shell {k + 1}/{len(parts)})" if len(parts) > 1 else "")
+            vertex_sets += _decompose(part, threshold, max_pieces, max_seconds=max_seconds, desc=desc)
+    return tuple(_pieces_of(vertex_sets, max_planes_per_piece, np.asarray(mesh.vertices), name))
 
 
 # ---------------------------------------------------------------------------- local plane sets

@@ -1,7 +1,8 @@
 """Object models: `ObjectModel`, a watertight mesh with its convex pieces and its distances.
 
 An `ObjectModel` is built from a mesh file (loaded and repaired here), an in-memory mesh or a generated
-primitive (box, cylinder, sphere, capsule, bottle, banana; see `shapes`), and carries a `spec` that
+primitive (box, cylinder, sphere, capsule, bottle, banana, bowl, cup, mug, flat tool, holed box; see
+`shapes`), and carries a `spec` that
 rebuilds it (`ObjectModel.from_spec`). It is a facade over three modules:
 
 * `regrasp_casadi.convex`: the convex pieces (coacd, cached on disk by mesh content) and local plane sets;
@@ -31,8 +32,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from regrasp_casadi import shapes
 from regrasp_casadi.convex import (
+    DEFAULT_HULL_TOLERANCE,
     DEFAULT_MAX_PIECES,
     DEFAULT_MAX_PLANES,
+    DEFAULT_MAX_SECONDS,
     DEFAULT_THRESHOLD,
     LOCAL_PIECES,
     LOCAL_PLANES,
@@ -43,15 +46,20 @@ from regrasp_casadi.convex import (
 )
 from regrasp_casadi.errors import MeshError
 from regrasp_casadi.exact_distance import ExactDistance
+from regrasp_casadi.mesh_repair import repair_shells, shells
 
 if TYPE_CHECKING:  # pragma: no cover
     import casadi as ca
 
-__all__ = ["ObjectModel", "load_mesh"]
+__all__ = ["PRIMITIVES", "ObjectModel", "check_scale", "load_mesh"]
 
 log = logging.getLogger(__name__)
 
 _MAX_EXTENT_M = 2.0
+
+PRIMITIVES = ("box", "cylinder", "sphere", "capsule", "bottle", "banana", "bowl", "cup", "mug", "flat_tool",
+              "holed_box")
+"""The generated objects: `ObjectModel.<name>(...)`, `{"primitive": name, ...}` in specs and problem files."""
 
 
 def _read_mesh(path: pathlib.Path) -> tuple[trimesh.Trimesh, bytes]:
@@ -88,10 +96,20 @@ def _repair(mesh: trimesh.Trimesh, path: pathlib.Path) -> trimesh.Trimesh:
     return mesh
 
 
+def check_scale(scale, where: str = "scale") -> float:
+    """`scale` as a float if it is a finite number > 0; else MeshError naming `where` and the value."""
+    ok = isinstance(scale, (int, float, np.integer, np.floating)) and not isinstance(scale, (bool, np.bool_))
+    if not (ok and np.isfinite(scale) and scale > 0):
+        raise MeshError(f"{where}: expected a positive finite number (the factor from file units to metres), "
+                        f"got {scale!r}")
+    return float(scale)
+
+
 def load_mesh(path, scale: float = 1.0) -> tuple[trimesh.Trimesh, str]:
     """Load an OBJ/STL/PLY/GLB mesh, scale it to metres and repair it.
 
-    Repairs: merged vertices, removed degenerate and duplicate faces, consistent outward winding.
+    Repairs: merged vertices, removed degenerate and duplicate faces, consistent outward winding; shells
+    that intersect or lie inside one another are replaced by their union (`mesh_repair.repair_shells`).
 
     Args:
         path: mesh file (resolved to an absolute path).
@@ -102,12 +120,15 @@ def load_mesh(path, scale: float = 1.0) -> tuple[trimesh.Trimesh, str]:
 
     Raises:
         MeshError: naming the file, if it is missing, empty or unreadable, has non-finite vertices,
-            is not watertight after repair, or looks like millimetres (largest extent > 2 m).
+            is not watertight after repair, intersects itself within one shell, or looks like
+            millimetres (largest extent > 2 m); naming `scale` if it is not a finite number > 0.
     """
     path = pathlib.Path(path).expanduser().resolve()
+    scale = check_scale(scale, f"{path}: scale")
     loaded, data = _read_mesh(path)
-    mesh = trimesh.Trimesh(np.asarray(loaded.vertices, float) * float(scale), loaded.faces, process=False)
+    mesh = trimesh.Trimesh(np.asarray(loaded.vertices, float) * scale, loaded.faces, process=False)
     _repair(mesh, path)
+    mesh = repair_shells(mesh, str(path))
     ext = float(np.max(mesh.extents))
     if ext > _MAX_EXTENT_M:
         raise MeshError(f"{path}: largest extent is {ext:.4g} m after scale={scale}; the file looks like "
@@ -150,27 +171,36 @@ class ObjectModel:
         max_planes_per_piece: int = DEFAULT_MAX_PLANES,
         max_pieces: int = DEFAULT_MAX_PIECES,
         spec: dict | None = None,
+        *,
+        hull_tolerance: float = DEFAULT_HULL_TOLERANCE,
+        max_seconds: float = DEFAULT_MAX_SECONDS,
     ) -> ObjectModel:
         """Build from a watertight mesh in metres (no repair; see `from_mesh` for files).
 
         Args:
             mesh: watertight mesh, metres, object frame.
             name: object name.
-            convex: True: one piece, the hull; False: coacd; None: decide by `mesh.is_convex`.
+            convex: True: each shell one piece, its hull; False: coacd; None: the hull for convex shells
+                and shells within `hull_tolerance` of convex, else coacd (see `convex.convex_pieces`).
             threshold: coacd concavity threshold.
             max_planes_per_piece: plane cap of each piece.
             max_pieces: cap on coacd pieces.
             spec: rebuild recipe; default an inline copy of the mesh.
+            hull_tolerance: see `convex.is_near_convex`, m (0: never replace a decomposition by the hull).
+            max_seconds: time cap of a coacd decomposition, s.
         """
-        if convex is None:
-            convex = bool(mesh.is_convex)
-        pieces = convex_pieces(mesh, convex, threshold, max_planes_per_piece, max_pieces)
+        pieces = convex_pieces(mesh, convex, threshold, max_planes_per_piece, max_pieces,
+                               hull_tolerance=hull_tolerance, max_seconds=max_seconds, name=name)
         if spec is None:
             spec = {"inline_mesh": {"vertices": mesh.vertices.tolist(), "faces": mesh.faces.tolist()}}
+            if convex is None:
+                convex = bool(mesh.is_convex) and len(shells(mesh)) == 1
             if not convex:
                 spec.update(threshold=threshold)
             if max_planes_per_piece != DEFAULT_MAX_PLANES:
                 spec.update(max_planes_per_piece=max_planes_per_piece)
+            if hull_tolerance != DEFAULT_HULL_TOLERANCE:
+                spec.update(hull_tolerance=hull_tolerance)
         return cls(name, mesh, pieces, spec)
 
     @classmethod
@@ -182,10 +212,15 @@ class ObjectModel:
         threshold: float = DEFAULT_THRESHOLD,
         max_planes_per_piece: int = DEFAULT_MAX_PLANES,
         max_pieces: int = DEFAULT_MAX_PIECES,
+        *,
+        hull_tolerance: float = DEFAULT_HULL_TOLERANCE,
+        max_seconds: float = DEFAULT_MAX_SECONDS,
     ) -> ObjectModel:
         """Load an OBJ/STL/PLY/GLB mesh (metres after `scale`), repair it and decompose it.
 
-        Repairs: merged vertices, removed degenerate and duplicate faces, consistent outward winding.
+        Repairs: merged vertices, removed degenerate and duplicate faces, consistent outward winding;
+        overlapping or nested shells are replaced by their union (see `load_mesh`). A mesh within
+        `hull_tolerance` of convex is one piece, its hull (`convex.is_near_convex`); else coacd, cached.
 
         Args:
             path: mesh file.
@@ -194,10 +229,13 @@ class ObjectModel:
             threshold: coacd concavity threshold (0.02 gives finer pieces, see benchmarks/geometry.py).
             max_planes_per_piece: plane cap of each convex piece.
             max_pieces: cap on the number of coacd pieces.
+            hull_tolerance: largest hull-to-mesh distance, m, at which the hull replaces coacd (0: never).
+            max_seconds: time cap of the coacd decomposition, s (then cheaper settings, then the hull).
 
         Raises:
             MeshError: naming the file, if it is missing, empty or unreadable, has non-finite vertices,
-                is not watertight after repair, or looks like millimetres (largest extent > 2 m).
+                is not watertight after repair, intersects itself within one shell, or looks like
+                millimetres (largest extent > 2 m); naming `scale` if it is not a finite number > 0.
         """
         path = pathlib.Path(path).expanduser().resolve()
         mesh, sha256 = load_mesh(path, scale)
@@ -206,9 +244,12 @@ class ObjectModel:
             spec["threshold"] = threshold
         if max_planes_per_piece != DEFAULT_MAX_PLANES:
             spec["max_planes_per_piece"] = max_planes_per_piece
+        if hull_tolerance != DEFAULT_HULL_TOLERANCE:
+            spec["hull_tolerance"] = hull_tolerance
         if name is None:
             name = path.parent.name if path.stem == "mesh" else path.stem
-        return cls.from_trimesh(mesh, name, None, threshold, max_planes_per_piece, max_pieces, spec)
+        return cls.from_trimesh(mesh, name, None, threshold, max_planes_per_piece, max_pieces, spec,
+                                hull_tolerance=hull_tolerance, max_seconds=max_seconds)
 
     @classmethod
     def _primitive(cls, mesh, name, spec, max_planes, convex=True, threshold=DEFAULT_THRESHOLD):
@@ -272,6 +313,57 @@ class ObjectModel:
                               max_planes_per_piece, convex=False, threshold=threshold)
 
     @classmethod
+    def bowl(cls, radius: float = 0.06, wall: float = 0.004, *, threshold: float = DEFAULT_THRESHOLD,
+             max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
+        """Thin-walled hemispherical bowl, 0.12 m across, 4 mm wall, open to +z; see `shapes.bowl_mesh`."""
+        dims = {"radius": float(radius), "wall": float(wall)}
+        return cls._primitive(shapes.bowl_mesh(**dims), "bowl", {"primitive": "bowl", **dims},
+                              max_planes_per_piece, convex=False, threshold=threshold)
+
+    @classmethod
+    def cup(cls, radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004, *,
+            threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
+            ) -> ObjectModel:
+        """Thin-walled cylindrical cup, 0.08 m across, 0.1 m tall, 4 mm walls; see `shapes.cup_mesh`."""
+        dims = {"radius": float(radius), "height": float(height), "wall": float(wall),
+                "bottom": float(bottom)}
+        return cls._primitive(shapes.cup_mesh(**dims), "cup", {"primitive": "cup", **dims},
+                              max_planes_per_piece, convex=False, threshold=threshold)
+
+    @classmethod
+    def mug(cls, radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004,
+            handle_radius: float = 0.028, handle_thickness: float = 0.01, *,
+            threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
+            ) -> ObjectModel:
+        """`cup` with a handle (genus 1), 0.11 m across with the handle; see `shapes.mug_mesh`."""
+        dims = {"radius": float(radius), "height": float(height), "wall": float(wall),
+                "bottom": float(bottom), "handle_radius": float(handle_radius),
+                "handle_thickness": float(handle_thickness)}
+        return cls._primitive(shapes.mug_mesh(**dims), "mug", {"primitive": "mug", **dims},
+                              max_planes_per_piece, convex=False, threshold=threshold)
+
+    @classmethod
+    def flat_tool(cls, length: float = 0.20, thickness: float = 0.015, handle_width: float = 0.025,
+                  head_length: float = 0.08, head_width: float = 0.045, corner_radius: float = 0.01, *,
+                  threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
+                  ) -> ObjectModel:
+        """Flat spatula-like tool, 0.2 m long, 15 mm thick, in the x-y plane; see `shapes.flat_tool_mesh`."""
+        dims = {"length": float(length), "thickness": float(thickness), "handle_width": float(handle_width),
+                "head_length": float(head_length), "head_width": float(head_width),
+                "corner_radius": float(corner_radius)}
+        return cls._primitive(shapes.flat_tool_mesh(**dims), "flat_tool", {"primitive": "flat_tool", **dims},
+                              max_planes_per_piece, convex=False, threshold=threshold)
+
+    @classmethod
+    def holed_box(cls, extents=(0.05, 0.07, 0.09), hole_radius: float = 0.002, *,
+                  threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
+                  ) -> ObjectModel:
+        """Box with three 4 mm tunnels through it (a scan artefact, genus 3); see `shapes.holed_box_mesh`."""
+        dims = {"extents": [float(e) for e in extents], "hole_radius": float(hole_radius)}
+        return cls._primitive(shapes.holed_box_mesh(**dims), "holed_box", {"primitive": "holed_box", **dims},
+                              max_planes_per_piece, convex=False, threshold=threshold)
+
+    @classmethod
     def from_spec(cls, spec: dict, base_dir=None) -> ObjectModel:
         """Rebuild from `obj.spec`; a relative "mesh" path is resolved against `base_dir`.
 
@@ -280,11 +372,13 @@ class ObjectModel:
         """
         spec = dict(spec)
         opts = {k: spec.pop(k) for k in ("threshold", "max_planes_per_piece") if k in spec}
+        if "hull_tolerance" in spec and ("mesh" in spec or "inline_mesh" in spec):
+            opts["hull_tolerance"] = spec.pop("hull_tolerance")
         if "mesh" in spec:
             path = pathlib.Path(spec["mesh"]).expanduser()
             if not path.is_absolute() and base_dir is not None:
                 path = pathlib.Path(base_dir) / path
-            obj = cls.from_mesh(path, scale=float(spec.get("scale", 1.0)), **opts)
+            obj = cls.from_mesh(path, scale=check_scale(spec.get("scale", 1.0), f"{path}: scale"), **opts)
             sha = spec.get("sha256")
             if sha and obj.spec["sha256"] != sha:
                 log.warning("%s: content differs from the spec's sha256 (file changed since)", path)
@@ -293,7 +387,7 @@ class ObjectModel:
             m = trimesh.Trimesh(spec["inline_mesh"]["vertices"], spec["inline_mesh"]["faces"], process=False)
             return cls.from_trimesh(m, spec=None, **opts)
         kind = spec.pop("primitive", None)
-        if kind not in ("box", "cylinder", "sphere", "capsule", "bottle", "banana"):
+        if kind not in PRIMITIVES:
             raise MeshError(f"object spec {spec!r}: unknown primitive {kind!r}")
         return getattr(cls, kind)(**spec, **opts)
 

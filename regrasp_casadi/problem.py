@@ -41,7 +41,6 @@ PROBLEM_SCHEMA_VERSION = 1
 """Version of the problem-file schema; files must say `schema_version: 1`."""
 
 _TOP_KEYS = ("schema_version", "name", "description", "hand", "object", "grasp0", "grasp_goal")
-_PRIMITIVES = ("box", "cylinder", "sphere", "capsule", "bottle", "banana")
 _PRIMITIVE_DIMENSIONS = {  # the keys a problem file must give for each primitive (no silent defaults), m
     "box": ("extents",),
     "cylinder": ("radius", "height"),
@@ -49,8 +48,14 @@ _PRIMITIVE_DIMENSIONS = {  # the keys a problem file must give for each primitiv
     "capsule": ("radius", "height"),
     "bottle": ("body_radius", "body_height", "shoulder_height", "neck_radius", "neck_height"),
     "banana": ("length", "thickness", "bend_radius"),
+    "bowl": ("radius", "wall"),
+    "cup": ("radius", "height", "wall", "bottom"),
+    "mug": ("radius", "height", "wall", "bottom", "handle_radius", "handle_thickness"),
+    "flat_tool": ("length", "thickness", "handle_width", "head_length", "head_width", "corner_radius"),
+    "holed_box": ("extents", "hole_radius"),
 }
-_MESH_KEYS = ("mesh", "scale", "sha256", "threshold", "max_planes_per_piece")
+_PRIMITIVES = tuple(_PRIMITIVE_DIMENSIONS)  # = objects.PRIMITIVES (tested)
+_MESH_KEYS = ("mesh", "scale", "sha256", "threshold", "max_planes_per_piece", "hull_tolerance")
 
 
 class _Ctx:
@@ -235,6 +240,15 @@ def _check_mesh_object(ctx: _Ctx, v: dict) -> None:
         raise ctx.error("object.mesh", f"expected a path, got {v['mesh']!r}")
     if "scale" in v and not (_is_number(v["scale"]) and v["scale"] > 0):
         raise ctx.error("object.scale", f"expected a positive number, got {v['scale']!r}")
+    if "sha256" in v and not isinstance(v["sha256"], str):
+        raise ctx.error("object.sha256", f"expected a hex string, got {v['sha256']!r}")
+    if "threshold" in v and not (_is_number(v["threshold"]) and v["threshold"] > 0):
+        raise ctx.error("object.threshold", f"expected a positive number, got {v['threshold']!r}")
+    planes = v.get("max_planes_per_piece", 4)
+    if not (isinstance(planes, int) and not isinstance(planes, bool) and planes >= 4):
+        raise ctx.error("object.max_planes_per_piece", f"expected an integer ≥ 4, got {planes!r}")
+    if "hull_tolerance" in v and not (_is_number(v["hull_tolerance"]) and v["hull_tolerance"] >= 0):
+        raise ctx.error("object.hull_tolerance", f"expected a number ≥ 0 (m), got {v['hull_tolerance']!r}")
 
 
 def _check_primitive_object(ctx: _Ctx, v: dict, object_model: type) -> None:

@@ -206,3 +206,52 @@ def test_plan_models_use_the_models_given_without_building(folder):
     assert plan_models(plan, problem.hand, problem.obj) == (problem.hand, problem.obj)
     with pytest.raises(ModelError, match="no_such_hand"):
         plan_models(plan, None, problem.obj)
+
+
+@pytest.mark.parametrize(
+    "key, value, message",
+    [
+        ("scale", 0, "object.scale: expected a positive number, got 0"),
+        ("scale", -0.001, "object.scale: expected a positive number, got -0.001"),
+        ("scale", float("nan"), "object.scale: expected a positive number, got nan"),
+        ("scale", "mm", "object.scale: expected a positive number, got 'mm'"),
+        ("scale", True, "object.scale: expected a positive number, got True"),
+        ("threshold", 0.0, "object.threshold: expected a positive number"),
+        ("max_planes_per_piece", 2.5, "object.max_planes_per_piece: expected an integer ≥ 4"),
+        ("hull_tolerance", -1e-3, "object.hull_tolerance: expected a number ≥ 0"),
+        ("sha256", 123, "object.sha256: expected a hex string"),
+    ],
+)
+def test_mesh_object_options_name_the_key(folder, key, value, message):
+    import trimesh
+
+    trimesh.creation.box(extents=tf.BOX_EXTENTS).export(folder / "box.stl")
+    doc = copy.deepcopy(_valid_doc())
+    doc["object"] = {"mesh": "box.stl", key: value}
+    path = _write(folder, doc, "bad_mesh.yaml")
+    with pytest.raises(ProblemFileError, match=rf"^{path}: {message}"):
+        RegraspProblem.load(path)
+
+
+@pytest.mark.parametrize("primitive", ["bowl", "cup", "mug", "flat_tool", "holed_box"])
+def test_new_primitives_are_known_to_problem_files(folder, primitive):
+    """The generated objects load from problem files; unknown parameters name the key (checked before any
+    mesh is built or decomposed)."""
+    doc = copy.deepcopy(_valid_doc())
+    doc["object"] = {"primitive": primitive, "no_such_size": 0.1}
+    path = _write(folder, doc, "prim.yaml")
+    with pytest.raises(ProblemFileError, match=rf"^{path}: object: unknown key\(s\) no_such_size \(allowed: "
+                                               rf"primitive, .*threshold, max_planes_per_piece\)"):
+        RegraspProblem.load(path)
+
+
+def test_problem_files_know_every_primitive_and_its_dimensions():
+    import inspect
+
+    from regrasp_casadi import problem
+    from regrasp_casadi.objects import PRIMITIVES, ObjectModel
+
+    assert problem._PRIMITIVES == PRIMITIVES
+    for kind, dims in problem._PRIMITIVE_DIMENSIONS.items():
+        params = inspect.signature(getattr(ObjectModel, kind)).parameters
+        assert set(dims) <= set(params), kind
