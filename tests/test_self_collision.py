@@ -240,7 +240,7 @@ def test_mesh_check_is_skipped_with_a_note_without_meshes_or_fcl(hand, box_pair,
     report = verify(plan, hand, obj)  # the shipped URDF has spheres and primitive visuals only
     note = report.metrics["mesh_check"]
     assert note.startswith("skipped") and "no link meshes" in note
-    import regrasp_casadi.link_meshes as link_meshes
+    from regrasp_casadi import link_meshes
 
     monkeypatch.setattr(link_meshes, "available", lambda: False)
     report = verify(plan, hand, obj)
