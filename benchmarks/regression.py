@@ -6,6 +6,12 @@ record a fingerprint before the change, another after, and compare them.
     python benchmarks/regression.py --out before.json                 # shipped problems + YCB pairs
     python benchmarks/regression.py --out after.json --compare before.json
     python benchmarks/regression.py --no-ycb --out quick.json          # shipped problems only (~20 s)
+    python benchmarks/regression.py --no-self-collision --out off.json --compare before.json
+
+`--no-self-collision` plans with ``self_clearance=None`` (no self-collision constraints, the planner as it
+was before them) and judges "verified" without verify's self-collision checks, so it reproduces a
+fingerprint recorded before they existed; "self_collision_steps" (steps where verify's sphere check
+fails) is recorded either way and not compared.
 
 Each record holds the problem, method, status, iterations, the step kinds in order, the mean and largest
 final contact error (mm, rounded to 1 µm) and whether `verify` passes. `--compare` prints a before/after
@@ -36,8 +42,12 @@ def _problem_files(ycb: bool) -> list[pathlib.Path]:
     return files
 
 
-def fingerprint(path: str, method: str) -> dict:
-    """Plan one problem with one method; return its fingerprint (never raises)."""
+_SELF_CHECKS = ("self_collision", "self_collision_mesh")
+
+
+def fingerprint(path: str, method: str, self_collision: bool = True) -> dict:
+    """Plan one problem with one method; return its fingerprint (never raises). `self_collision=False`:
+    plan without self-collision constraints and leave verify's self-collision checks out of "verified"."""
     from regrasp_casadi.planner import plan_regrasp
     from regrasp_casadi.problem import RegraspProblem
     from regrasp_casadi.verify import verify
@@ -45,8 +55,12 @@ def fingerprint(path: str, method: str) -> dict:
     rec = {"problem": pathlib.Path(path).stem, "method": method}
     try:
         problem = RegraspProblem.load(path)
-        plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method)
-        ok = bool(verify(plan, problem.hand, problem.obj).ok)
+        extra = {} if self_collision else {"self_clearance": None}
+        plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, **extra)
+        report = verify(plan, problem.hand, problem.obj)
+        counted = [v for v in report.violations if self_collision or v.check not in _SELF_CHECKS]
+        ok = not counted
+        self_steps = len({v.step for v in report.violations if v.check == "self_collision"})
     except Exception as exc:  # recorded, not raised
         rec.update(status=f"exception: {type(exc).__name__}: {exc}")
         return rec
@@ -55,7 +69,7 @@ def fingerprint(path: str, method: str) -> dict:
                steps="".join(s.kind[0] for s in plan.steps),
                mean_error_mm=round(float(np.mean(err)) * 1e3, 3),
                max_error_mm=round(float(np.max(err)) * 1e3, 3), verified=ok,
-               time_s=round(float(plan.timing.get("total", 0.0)), 2))
+               time_s=round(float(plan.timing.get("total", 0.0)), 2), self_collision_steps=self_steps)
     return rec
 
 
@@ -95,10 +109,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--compare", type=pathlib.Path, help="an earlier fingerprint to compare with")
     ap.add_argument("--no-ycb", action="store_true", help="shipped problems only")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--no-self-collision", action="store_true",
+                    help="plan with self_clearance=None; 'verified' without the self-collision checks")
     args = ap.parse_args(argv)
     from machine import machine_info
 
-    jobs = [(str(p), m) for p in _problem_files(not args.no_ycb) for m in ("svd", "sd")]
+    on = not args.no_self_collision
+    jobs = [(str(p), m, on) for p in _problem_files(not args.no_ycb) for m in ("svd", "sd")]
     with ProcessPoolExecutor(args.workers) as pool:
         records = list(pool.map(fingerprint, *zip(*jobs, strict=True)))
     args.out.write_text(json.dumps({"machine": machine_info(), "records": records}, indent=1))

@@ -7,7 +7,7 @@ Every option default that stands for one of these symbols imports it from here:
 
 from __future__ import annotations
 
-__all__ = ["ZETA", "ETA", "BETA", "K_POS", "K_ORIENT", "MU"]
+__all__ = ["ZETA", "ETA", "BETA", "K_POS", "K_ORIENT", "MU", "SELF_CLEARANCE"]
 
 ZETA = 0.006
 """ζ, threshold on the largest contact error that ends the regrasp, m (paper: 6 mm)."""
@@ -26,3 +26,7 @@ K_ORIENT = 10.0
 
 MU = 0.5
 """μ, Coulomb friction coefficient of the force-closure tests (grasp stability, grasp generation)."""
+
+SELF_CLEARANCE = 0.001
+"""Clearance between the collision spheres of different fingers (and a finger and the palm) that OPT1,
+OPT2 and grasp generation keep, m (not the paper's: it has no self-collision constraint; 1 mm, like β)."""

@@ -18,6 +18,7 @@ from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
 from regrasp_casadi.constants import ETA
 from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
+from regrasp_casadi.self_collision import SelfCollisionConstraint
 from regrasp_casadi.signed_distance import DEFAULT_TAU
 
 if TYPE_CHECKING:
@@ -59,6 +60,9 @@ class FingerGaitResult(_solver.SolveStats):
     """|SD_exact(tip centre) − tip radius| at the result, m."""
     min_clearance: float
     """Smallest exact distance of the finger's other spheres to the object, m."""
+    min_self_clearance: float = float("inf")
+    """Smallest surface distance of the finger's spheres to the other fingers' and the palm's spheres
+    (the constrained pairs), m (inf without self-collision constraints)."""
 
 
 def _param_layout(n: int, k: int, n_planes: int) -> _solver.ParamLayout:
@@ -107,6 +111,13 @@ class FingerGaitNLP:
     other spheres, from the coarse pieces (`clearance_distance_function`). The offsets δ (parameters)
     make contacts exact: after a solve, δ = SD_exact − SD_smooth at the solution and the NLP is solved
     again (warm started) until the tip sits on the real mesh within `surface_tol`.
+
+    Self-collision (not in the paper; `options.self_clearance` = c, None: off): every sphere a of the
+    finger (tip included) keeps ``|c_a(Θ^r) − c_b| − ρ_a − ρ_b ≥ c`` from every sphere b of the other
+    fingers and the palm (fixed during the gait, so functions of the parameters), for the pairs
+    `Hand.self_collision_pairs(finger, within=c)`, one smooth minimum per rigid-body pair
+    (`self_collision.SelfCollisionConstraint`); a pair already closer than c at the start keeps at least
+    its start value (no worse).
 
     Decision variables: the finger's joints (n_r,). Parameters (`layout`): the full joint vector (n,),
     the object pose (R (3, 3), t (3,)), the goal tip centre (3,) object frame, δ_tip (1,), δ_l (k,), the
@@ -161,11 +172,17 @@ class FingerGaitNLP:
             _MM * (sd_l + P["delta_l"] - ca.DM(radii)),
             _CM2 * ca.sumsqr(c_palm - c_palm0),
         )
+        lbg = np.concatenate([[0.0], np.full(k, _MM * o.beta), [-np.inf]])
+        ubg = np.concatenate([[0.0], np.full(k, np.inf), [_CM2 * o.eta**2]])
+        # self-collision: the moving finger's spheres (variables) against the others' (parameters)
+        self.self_collision = SelfCollisionConstraint.build(hand, finger, o.self_clearance)
+        """The self-collision constraints (None: `self_clearance` None)."""
+        if self.self_collision is not None:
+            g, lbg, ubg = self.self_collision.extend(g, lbg, ubg, q_full, _MM)
         # bounds
         self._bounds = _solver.Bounds(
             lbx=np.asarray(hand.q_lower, float)[idx], ubx=np.asarray(hand.q_upper, float)[idx],
-            lbg=np.concatenate([[0.0], np.full(k, _MM * o.beta), [-np.inf]]),
-            ubg=np.concatenate([[0.0], np.full(k, np.inf), [_CM2 * o.eta**2]]))
+            lbg=lbg, ubg=ubg)
         # solver
         nlp = {"x": q_r, "p": p, "f": f, "g": g}
         self._solver = _solver.build_solver(f"finger_gait_{finger}", nlp,
@@ -219,8 +236,11 @@ class FingerGaitNLP:
         def params(delta, planes):
             return self._params(q, T, c_goal, delta, planes)
 
+        sc = self.self_collision
+        bounds, floor = (self._bounds, None) if sc is None else sc.bounds(self._bounds, q, _MM)
+
         def solve_with(x, offsets):
-            return self.warm_start.solve(self._solver, self._bounds, x0=x, p=params(*offsets))
+            return self.warm_start.solve(self._solver, bounds, x0=x, p=params(*offsets))
 
         def done(ev: _Evaluation) -> bool:
             clear_ok = self._k == 0 or np.min(ev.exact[1:] - self._radii) >= 0.5 * o.beta
@@ -236,9 +256,9 @@ class FingerGaitNLP:
                                        done, new_offsets, offsets=(start.exact - start.smooth, planes),
                                        x=x0, evaluation=start, max_solves=o.max_corrections + 1,
                                        accept=_solver.clipped_if_finite(self._bounds))
-        return self._result(q, c0, corr)
+        return self._result(q, c0, corr, floor)
 
-    def _result(self, q, c0, corr: _solver.Correction[_Evaluation]) -> FingerGaitResult:
+    def _result(self, q, c0, corr: _solver.Correction[_Evaluation], floor) -> FingerGaitResult:
         """The gait's result from the correction loop's last point, judged with the exact distances."""
         o = self.options
         ev = corr.evaluation
@@ -249,10 +269,14 @@ class FingerGaitNLP:
         step = float(np.linalg.norm(ev.p_object_tip - c0))  # the object does not move during a gait
         feasible = (surface_error <= max(o.surface_tol, 1e-4) and min_clear >= 0.0
                     and step <= o.eta + 1e-6)
+        sc, min_self = self.self_collision, float("inf")
+        if sc is not None:
+            min_self = sc.min_distance(q_new)
+            feasible = feasible and sc.holds(q_new, floor)
         if not feasible:
-            _log.debug("gait %s infeasible: status %s surface %.2e clearance %.2e step %.4f",
-                       self.finger, corr.status, surface_error, min_clear, step)
+            _log.debug("gait %s infeasible: status %s surface %.2e clearance %.2e self %.2e step %.4f",
+                       self.finger, corr.status, surface_error, min_clear, min_self, step)
         return FingerGaitResult(q=q_new, p_object_tip=ev.p_object_tip, status=corr.status,
                                 success=bool(feasible), iterations=corr.iterations, solves=corr.solves,
                                 solve_time=corr.solve_time, surface_error=surface_error,
-                                min_clearance=min_clear)
+                                min_clearance=min_clear, min_self_clearance=min_self)

@@ -6,6 +6,8 @@ A generated grasp G = (X, o, Θ) satisfies, checked with the *exact* mesh distan
   (0.1 mm);
 * no other hand–object contact: every non-tip collision sphere of the hand (palm included) keeps
   d_exact(centre) − radius ≥ β (1 mm by default);
+* no self-collision: the collision spheres of different fingers, and of a finger and the palm, keep the
+  self-clearance (1 mm by default; `Hand.self_collision_pairs`, pairs that touch at a joint excepted);
 * joints within their limits;
 * the grasp can hold the object: **force closure** with Coulomb friction μ (0.5), see `grasp_quality`.
 
@@ -34,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from regrasp_casadi.constants import BETA, MU
+from regrasp_casadi.constants import BETA, MU, SELF_CLEARANCE
 from regrasp_casadi.errors import GraspError
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.grasp_nlp import SURFACE_TOL, GraspNLP, grasp_nlp, solve_exact
@@ -229,9 +231,11 @@ class _Search:
     mu: float
 
 
-def _search(hand: Hand, obj: ObjectModel, mu: float, beta: float) -> _Search:
-    """The (cached) NLP and samples of (`hand`, `obj`, β = `beta` m) and friction `mu`."""
-    return _Search(hand, obj, grasp_nlp(hand, obj, beta), _object_data(hand, obj), _workspace(hand), mu)
+def _search(hand: Hand, obj: ObjectModel, mu: float, beta: float, self_clearance: float | None) -> _Search:
+    """The (cached) NLP and samples of (`hand`, `obj`, β = `beta` m, `self_clearance` m or None) and
+    friction `mu`."""
+    return _Search(hand, obj, grasp_nlp(hand, obj, beta, self_clearance), _object_data(hand, obj),
+                   _workspace(hand), mu)
 
 
 def _pick_targets(search: _Search, T, rng, away: _Away | None, tries: int = 12):
@@ -329,8 +333,9 @@ def _attempt(search: _Search, rng, guess, away: _Away | None) -> Grasp | None:
     except GraspError as exc:
         log.debug("rejected: %s", exc)
         return None
-    if not _non_tip_clear(grasp, nlp.beta):
-        _STATS["contact"] += 1
+    problem = _clearance_problem(grasp, nlp)
+    if problem:
+        _STATS[problem] += 1
         return None
     quality = grasp_quality(grasp, mu * _CONE_SHRINK)
     if quality <= _MIN_QUALITY:
@@ -339,6 +344,14 @@ def _attempt(search: _Search, rng, guess, away: _Away | None) -> Grasp | None:
         return None
     _STATS["ok"] += 1
     return grasp
+
+
+def _clearance_problem(grasp: Grasp, nlp: GraspNLP) -> str:
+    """"contact" (a non-tip sphere within β of the object), "self_collision" (two fingers, or a finger and
+    the palm, within the self-clearance) or "" (clear)."""
+    if not _non_tip_clear(grasp, nlp.beta):
+        return "contact"
+    return "" if nlp.self_clear(grasp.q) else "self_collision"
 
 
 def _non_tip_clear(grasp: Grasp, beta: float) -> bool:
@@ -360,11 +373,13 @@ def generate_grasps(
     T_palm_object_guess: NDArray[np.float64] | None = None,
     max_attempts: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    self_clearance: float | None = SELF_CLEARANCE,
 ) -> list[Grasp]:
     """Feasible four-finger precision grasps on `obj` (see the module docstring for the method).
 
     Every returned grasp satisfies, with the exact mesh distance: each tip sphere on the surface within
     `SURFACE_TOL` (0.1 mm); every non-tip collision sphere (palm included) at least `beta` from the object;
+    the spheres of different fingers, and of a finger and the palm, at least `self_clearance` apart;
     joints within limits; force closure with friction `mu` — the origin strictly inside the convex hull
     of the contact wrenches of 8-edge linearised friction cones, with a margin ε > 1e-3 computed with the
     shrunk coefficient μ·cos(π/8), so it holds for any orientation of the cone edges (torques about the
@@ -380,6 +395,9 @@ def generate_grasps(
         T_palm_object_guess: (4, 4) object pose in the palm frame to perturb (random poses if None).
         max_attempts: attempts before giving up (default 60·n).
         progress: optional callable ``progress(found, attempts)`` called after every attempt.
+        self_clearance: clearance between the collision spheres of different fingers and of a finger
+            and the palm, m (`Hand.self_collision_pairs`); None: no self-collision constraint (the
+            grasps of earlier versions).
 
     Returns:
         `n` grasps (with joints).
@@ -387,8 +405,8 @@ def generate_grasps(
     Raises:
         GraspError: if fewer than `n` grasps were found within `max_attempts`.
     """
-    return _generate(_search(hand, obj, mu, beta), n, seed, T_palm_object_guess, max_attempts,
-                     progress=progress)
+    return _generate(_search(hand, obj, mu, beta, self_clearance), n, seed, T_palm_object_guess,
+                     max_attempts, progress=progress)
 
 
 def _generate(search: _Search, n: int, seed: int, guess, max_attempts: int | None, *,
@@ -421,6 +439,7 @@ def generate_regrasp_pairs(
     beta: float = BETA,
     max_attempts: int = 40,
     progress: Callable[[int, int], None] | None = None,
+    self_clearance: float | None = SELF_CLEARANCE,
 ) -> list[tuple[Grasp, Grasp]]:
     """Pairs (initial grasp, desired grasp) for regrasp planning.
 
@@ -439,6 +458,7 @@ def generate_regrasp_pairs(
         beta: non-tip clearance, m.
         max_attempts: attempts per desired grasp before drawing a new initial grasp.
         progress: optional callable ``progress(found, attempts)`` called after every initial grasp tried.
+        self_clearance: self-clearance of both grasps, m (see `generate_grasps`); None: unconstrained.
 
     Returns:
         list of (grasp0, grasp_goal); both carry joints.
@@ -446,7 +466,7 @@ def generate_regrasp_pairs(
     Raises:
         GraspError: if the pairs could not be found.
     """
-    search = _search(hand, obj, mu, beta)
+    search = _search(hand, obj, mu, beta, self_clearance)
     pairs: list[tuple[Grasp, Grasp]] = []
     for i in range(20 * n_pairs):
         init = _generate(search, 1, seed * 100003 + i, None, 60)[0]

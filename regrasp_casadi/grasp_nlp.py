@@ -6,17 +6,22 @@ For tip-centre targets x_r + r_tip n_r (object frame) and a pose prior (R₀, t�
                     + w_t ||δt||² / s² + w_a ||a||²
     s.t.  sd(R(a)ᵀ(FK_r(q) − t)) + δ_r = r_tip                       (each fingertip r)
           sd_c(R(a)ᵀ(c_k(q) − t)) + δ_k − ρ_k ≥ β + margin           (each non-tip sphere k)
+          smin_{(a,b) ∈ B} (|c_a(q) − c_b(q)| − ρ_a − ρ_b) ≥ c + margin  (each rigid-body pair B of two
+                                                                    fingers or a finger and the palm)
           q_lower ≤ q ≤ q_upper
 
 with t = t₀ + δt, R(a) = R₀·Cay(a) (Cayley map), sd the smooth signed distance of `ObjectModel`
 (τ = 2 mm), sd_c its coarse clearance variant (≤ 16 planes per piece) and δ = d_exact − sd at the previous
-solution (a local correction, `solver.correct_offsets`). Later rounds re-centre the pose prior and q_ref
+solution (a local correction, `solver.correct_offsets`). The self-collision constraint (self-clearance c,
+None: none) is over `Hand.self_collision_pairs(within=c)`, one smooth minimum per rigid-body pair
+(`Hand.sphere_pair_distance_function`); it is exact (no offsets), and a grasp counts only when every pair of
+`Hand.self_collision_pairs()` keeps c. Later rounds re-centre the pose prior and q_ref
 on the solution with large weights (a proximal step) and re-solve; once the spheres are clear and the
 tips within 2 mm, Newton steps on the exact distance (each finger's tip moved along its contact normal
 by a damped least-norm joint step) put the tips on the surface. The NLP is built once per (hand,
-object, β) and re-solved from different seeds.
+object, β, c) and re-solved from different seeds.
 
-    >>> nlp = grasp_nlp(hand, obj, beta=0.001)
+    >>> nlp = grasp_nlp(hand, obj, beta=0.001, self_clearance=0.001)
     >>> solution, why_not = solve_exact(nlp, targets_obj, q0, T_palm_object0)
 """
 
@@ -33,6 +38,7 @@ from regrasp_casadi import solver as _solver
 from regrasp_casadi import terms
 from regrasp_casadi.hand import Hand
 from regrasp_casadi.objects import ObjectModel
+from regrasp_casadi.self_collision import SelfCollisionConstraint
 from regrasp_casadi.transforms import inv_T, make_T, transform_points
 
 __all__ = ["SURFACE_TOL", "GraspNLP", "GraspSolution", "grasp_nlp", "solve_exact"]
@@ -42,6 +48,7 @@ log = logging.getLogger(__name__)
 SURFACE_TOL = 1e-4
 """Allowed |exact distance of a tip centre − tip radius| of a generated grasp, m (0.1 mm)."""
 _MARGIN = 5e-4  # extra clearance demanded of the smooth distance of non-tip spheres, m
+_SELF_MARGIN = 2e-4  # extra self-clearance demanded in the NLP (the tips' Newton polish moves the fingers), m
 _SCALE = 0.01  # length scale of the objective, m
 _CORRECTION_ROUNDS = 5
 _CLEARANCE_PLANES = 16  # planes per piece of the coarse distance used for the non-tip spheres
@@ -66,11 +73,13 @@ class _Round:
 
 
 class GraspNLP:
-    """The grasp-synthesis NLP of the module docstring for one (hand, object, β); decision variables
-    x = (q (n,), δt (3,), a (3,)), parameters `layout`."""
+    """The grasp-synthesis NLP of the module docstring for one (hand, object, β, self-clearance c);
+    decision variables x = (q (n,), δt (3,), a (3,)), parameters `layout`."""
 
-    def __init__(self, hand: Hand, obj: ObjectModel, beta: float):
+    def __init__(self, hand: Hand, obj: ObjectModel, beta: float, self_clearance: float | None = None):
         self.hand, self.obj, self.beta = hand, obj, float(beta)
+        self.self_clearance = None if self_clearance is None else float(self_clearance)
+        """Clearance of the spheres of different fingers / a finger and the palm, m (None: unconstrained)."""
         n, m = hand.n_joints, len(hand.fingers)
         self.radii = np.asarray(hand.sphere_radii(None, include_tip=False), float)
         k = len(self.radii)
@@ -110,11 +119,14 @@ class GraspNLP:
         g_sph = sd_sph.T + P["delta_sph"] - ca.DM(self.radii)
         g = ca.vertcat(g_tip, g_sph)
         # bounds
+        lbg = np.concatenate([np.zeros(m), np.full(k, self.beta + _MARGIN)])
+        ubg = np.concatenate([np.zeros(m), np.full(k, np.inf)])
+        if self.self_clearance is not None:  # the NLP's margin: the tips' Newton polish moves the fingers
+            sc = SelfCollisionConstraint.build(hand, None, self.self_clearance + _SELF_MARGIN)
+            g, lbg, ubg = sc.extend(g, lbg, ubg, q, 1.0)
         self.bounds = _solver.Bounds(
             lbx=np.concatenate([hand.q_lower, np.full(3, -0.05), np.full(3, -0.5)]),
-            ubx=np.concatenate([hand.q_upper, np.full(3, 0.05), np.full(3, 0.5)]),
-            lbg=np.concatenate([np.zeros(m), np.full(k, self.beta + _MARGIN)]),
-            ubg=np.concatenate([np.zeros(m), np.full(k, np.inf)]))
+            ubx=np.concatenate([hand.q_upper, np.full(3, 0.05), np.full(3, 0.5)]), lbg=lbg, ubg=ubg)
         # solver
         nlp = {"x": x, "p": p, "f": f, "g": g}
         self.solver = _solver.build_solver("grasp_synthesis", nlp, _SOLVER_OPTIONS)
@@ -136,13 +148,24 @@ class GraspNLP:
         return _solver.solve(self.solver, x0=x0, p=p, **self.bounds.kwargs())
 
 
+    def self_clear(self, q) -> bool:
+        """Every self-collision pair of the hand (`Hand.self_collision_pairs()`, none pruned) keeps the
+        self-clearance at `q` (True without a self-clearance)."""
+        if self.self_clearance is None:
+            return True
+        return bool(np.min(self.hand.self_collision_distances(q), initial=np.inf) >= self.self_clearance)
+
+
 _NLP_CACHE = _solver.NLPCache(max_size=8)
-"""The grasp NLPs, one per (hand, object, β)."""
+"""The grasp NLPs, one per (hand, object, β, self-clearance)."""
 
 
-def grasp_nlp(hand: Hand, obj: ObjectModel, beta: float) -> GraspNLP:
-    """The grasp NLP of (`hand`, `obj`, `beta` m), built on first use and kept in a small cache."""
-    return _NLP_CACHE.get("grasp_synthesis", hand, obj, float(beta), lambda: GraspNLP(hand, obj, beta))
+def grasp_nlp(hand: Hand, obj: ObjectModel, beta: float, self_clearance: float | None = None) -> GraspNLP:
+    """The grasp NLP of (`hand`, `obj`, `beta` m, `self_clearance` m or None), built on first use and kept
+    in a small cache."""
+    key = (float(beta), None if self_clearance is None else float(self_clearance))
+    return _NLP_CACHE.get("grasp_synthesis", hand, obj, key,
+                          lambda: GraspNLP(hand, obj, beta, self_clearance))
 
 
 @dataclass(frozen=True)
@@ -162,7 +185,8 @@ class GraspSolution:
     sd_sph: NDArray[np.float64]
     """Smooth distances of the non-tip sphere centres (no offsets), (k,) m."""
     ok: bool
-    """The tips are on the surface within `SURFACE_TOL` / 2 and the spheres clear β + 0.2 mm."""
+    """The tips are on the surface within `SURFACE_TOL` / 2, the spheres clear β + 0.2 mm and (with a
+    self-clearance) every self-collision pair keeps it."""
 
 
 def solve_exact(nlp: GraspNLP, targets_obj: NDArray[np.float64], q0: NDArray[np.float64],
@@ -192,8 +216,9 @@ def solve_exact(nlp: GraspNLP, targets_obj: NDArray[np.float64], q0: NDArray[np.
             if q_pol is not None:
                 x = np.concatenate([q_pol, x[nlp.n:]])
                 tip_ok = True
+        self_ok = nlp.self_clear(x[: nlp.n])
         return GraspSolution(x, nlp.pose(x, rnd.R0, rnd.t0), ex_tip, ex_sph, sd_tip.ravel(), sd_sph.ravel(),
-                      bool(tip_ok and sph_ok))
+                             bool(tip_ok and sph_ok and self_ok))
 
     def new_round(x, c: GraspSolution, rnd: _Round) -> _Round:
         log.debug("tip error %.3g mm, min clearance %.3g mm", 1e3 * np.max(np.abs(c.ex_tip - r)),

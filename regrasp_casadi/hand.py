@@ -10,6 +10,9 @@ cached on the instance, callable on numbers, SX or MX.
     >>> p_palm_tips = hand.tip_positions(q)          # (4, 3), contact-sphere centres, palm frame, m
     >>> J = hand.tip_jacobian(q, "index")              # (3, 16)
     >>> hand.thumb, hand.gait_forward                  # from models/allegro_right/hand.yaml
+    >>> hand.self_collision_distances(q).min()        # spheres of different fingers / palm, m
+
+Self-collision pairs (which count, which are excluded or pruned): `regrasp_casadi.self_collision`.
 """
 
 from __future__ import annotations
@@ -415,6 +418,76 @@ class Hand:
     def sphere_labels(self, finger: str | None = None, include_tip: bool = False) -> list[str]:
         """Labels (``"link_2.0#1"``, ``"link_3.0_tip#tip"``) in the order of ``sphere_centers_function``."""
         return [s.label for s in self._select_spheres(finger, include_tip)]
+
+    # ------------------------------------------------------------------ self-collision
+    def parent_link(self, link: str) -> str | None:
+        """The link `link` hangs on (None for the root)."""
+        return self._parent_joint[link].parent if link in self._parent_joint else None
+
+    def rigid_body(self, link: str) -> str:
+        """The link that `link` is rigidly fixed to: up its fixed joints (the link itself if it moves)."""
+        while link in self._parent_joint and self._parent_joint[link].type == "fixed":
+            link = self._parent_joint[link].parent
+        return link
+
+    @functools.cached_property
+    def self_collision_excluded(self) -> frozenset[tuple[int, int]]:
+        """Pairs (a, b), a < b, of indices into `spheres` that always touch at a joint, never checked
+        (`self_collision.excluded_pairs`; ModelError for a bad ``hand.yaml`` entry)."""
+        from regrasp_casadi.self_collision import excluded_pairs
+
+        return excluded_pairs(self)
+
+    @functools.cached_property
+    def _self_collision_bounds(self) -> dict[tuple[int, int], float]:
+        """Every pair that is not excluded -> the sampled lower bound (m) of its surface distance."""
+        from regrasp_casadi.self_collision import pair_lower_bounds
+
+        pairs = self.self_collision_pairs()
+        return dict(zip(pairs, pair_lower_bounds(self, pairs).tolist(), strict=True))
+
+    def self_collision_pairs(self, finger: str | None = None,
+                             within: float | None = None) -> tuple[tuple[int, int], ...]:
+        """Sphere pairs (a, b), a < b, indices into `spheres`, whose self-collision counts: different
+        fingers or a finger and the palm, not excluded (`self_collision_excluded`). `finger`: only the
+        pairs with a sphere of that finger; `within` (m): only the pairs whose sampled lower bound over
+        the joint limits is ≤ `within` + `self_collision.PRUNE_MARGIN` (the others cannot come that close:
+        no constraint needed). See `regrasp_casadi.self_collision`."""
+        from regrasp_casadi.self_collision import PRUNE_MARGIN, candidate_pairs
+
+        self._check_finger(finger)
+        pairs = [p for p in candidate_pairs(self) if p not in self.self_collision_excluded
+                 and (finger is None or finger in (self.spheres[p[0]].finger, self.spheres[p[1]].finger))]
+        if within is not None:
+            pairs = [p for p in pairs if self._self_collision_bounds[p] <= within + PRUNE_MARGIN]
+        return tuple(pairs)
+
+    def sphere_pair_distance_function(self, pairs, tau: float | None = None) -> ca.Function:
+        """``self_distances``: q (n,) -> d (P,), m: the surface distances |c_a − c_b| − r_a − r_b of the
+        sphere pairs `pairs` ((a, b) indices into `spheres`; √(|c_a − c_b|² + 1e-12), smooth). With `tau`
+        (m): ``self_min``, q -> (G,), one smooth minimum −τ·log Σ exp(−d_i/τ) ∈ [min d_i − τ·log size,
+        min d_i] per rigid-body pair (groups of `self_collision.body_groups`): d ≥ c implies d_i ≥ c."""
+        pairs = tuple((int(a), int(b)) for a, b in pairs)
+
+        def outputs():
+            from regrasp_casadi.self_collision import body_groups
+            from regrasp_casadi.signed_distance import smooth_min
+
+            c, r = [self._center_expr(s) for s in self.spheres], [s.radius for s in self.spheres]
+            d = ca.vertcat(*[ca.sqrt(ca.sumsqr(c[a] - c[b]) + 1e-12) - r[a] - r[b] for a, b in pairs])
+            if tau is not None:
+                d = ca.vertcat(*[smooth_min(d[list(g)], tau) for g in body_groups(self, pairs)])
+            return {"d_self": d if pairs else ca.SX(0, 1)}
+
+        name = "self_distances" if tau is None else "self_min"
+        return self._q_function(("pair_distances", pairs, tau), name, outputs)
+
+    def self_collision_distances(self, q: ArrayLike, pairs=None) -> NDArray[np.float64]:
+        """(P,) surface distances (m, < 0: overlap) of `pairs` (default: `self_collision_pairs()`) at q."""
+        from regrasp_casadi.self_collision import pair_distances
+
+        pairs = self.self_collision_pairs() if pairs is None else pairs
+        return pair_distances(self, self.sphere_centers(q, None, include_tip=True), pairs)
 
     # ------------------------------------------------------------------ numeric conveniences
     def _as_q(self, q: ArrayLike) -> NDArray[np.float64]:

@@ -27,10 +27,16 @@ that file describes this URDF.
       colors:                           # replay colours "#rrggbb" (quoted: # starts a YAML comment):
         palm: "#8d939c"                 #   the palm and links fixed to it, and any finger by name
         index: "#d1495b"
+    self_collision:
+      exclude:                          # pairs that always touch at a joint (never checked): a link
+        palm_link: [link_0.0]           #   name (all its spheres) or a sphere label: the links / labels
+        link_1.0#1: [palm_link#4]       #   it is not checked against
 
 A URDF without such a file gets `fallback_metadata`: the fingers given (default: the leaf links), no thumb,
 gait order = finger order (never reversed), no grasp region (the Hand derives one), the default camera
-and colours (`regrasp_casadi.hand_visuals`).
+and colours (`regrasp_casadi.hand_visuals`), no stored self-collision exclusions (the Hand applies the
+rule of `regrasp_casadi.self_collision`). Sphere labels are `Hand`'s (``"<link>#<k>"``, ``"<link>#tip"``);
+the Hand checks them.
 
 Every error is a `ModelError` naming the file and the joint, link or key.
 """
@@ -79,7 +85,8 @@ SUPPORTED_JOINTS = ("revolute", "continuous", "prismatic", "fixed")
 PALM = "palm"
 """The name of the hand's non-finger part in ``viewer.colors``."""
 
-_META_KEYS = ("schema_version", "urdf", "fingers", "thumb", "gait", "grasp_region", "viewer")
+_META_KEYS = ("schema_version", "urdf", "fingers", "thumb", "gait", "grasp_region", "viewer",
+              "self_collision")
 
 
 # ------------------------------------------------------------------------------------------------- URDF
@@ -348,6 +355,10 @@ class HandMetadata:
     named gets the viewer's default (`regrasp_casadi.hand_visuals.hand_colors`)."""
     source: Path | None = None
     """The ``hand.yaml`` read (None: fallback metadata)."""
+    self_collision_exclude: tuple[tuple[str, str], ...] | None = None
+    """Pairs of link names (every sphere of each) or sphere labels that always touch at a joint, never
+    checked for self-collision (``hand.yaml``'s ``self_collision.exclude``); None: not given (the Hand
+    applies `self_collision.touching_pairs`)."""
 
 
 def fallback_metadata(fingers: dict[str, str], base: HandMetadata | None = None) -> HandMetadata:
@@ -355,12 +366,14 @@ def fallback_metadata(fingers: dict[str, str], base: HandMetadata | None = None)
 
     `base` (the metadata file of the URDF, whose fingers differ from `fingers`) lends its hand-level
     entries, which do not name fingers: the grasp region, the camera, the source, and the colours of the
-    palm and of the fingers that keep their names.
+    palm and of the fingers that keep their names (not its self-collision exclusions: the spheres'
+    fingers change with the fingers).
     """
     base = base if base is not None else HandMetadata(fingers={})
     colors = {k: c for k, c in base.colors.items() if k == PALM or k in fingers}
     return dataclasses.replace(base, fingers=dict(fingers), thumb=None, gait_forward=tuple(fingers),
-                               gait_reversible=False, colors=colors)
+                               gait_reversible=False, colors=colors,
+                               self_collision_exclude=None)
 
 
 def load_metadata(urdf: UrdfModel) -> HandMetadata | None:
@@ -403,8 +416,9 @@ def read_metadata(path: str | Path, urdf: UrdfModel, raw: dict | None = None) ->
     forward, reversible = _gait(error, raw.get("gait", {}), fingers)
     region = _region(error, raw["grasp_region"]) if "grasp_region" in raw else None
     camera, colors = _viewer(error, raw.get("viewer", {}), fingers)
+    exclude = _self_collision(error, raw["self_collision"]) if "self_collision" in raw else None
     return HandMetadata(fingers, thumb, forward, reversible, region, camera, colors=colors,
-                        source=path.resolve())
+                        source=path.resolve(), self_collision_exclude=exclude)
 
 
 def _read_yaml(path: Path) -> dict:
@@ -479,6 +493,19 @@ def _viewer(error, v: Any, fingers: dict[str, str]) -> tuple[CameraHint, dict[st
             hint = " (quote it: # starts a YAML comment)" if color is None else ""
             raise error(f"viewer.colors.{part}", f"expected a colour '#rrggbb', got {color!r}{hint}")
     return CameraHint(toward, lift), {str(k): c.lower() for k, c in colors.items()}
+
+
+def _self_collision(error, v: Any) -> tuple[tuple[str, str], ...]:
+    """``self_collision: {exclude: {name: [name, ...]}}`` -> name pairs (link names or sphere labels)."""
+    if not isinstance(v, dict) or any(k != "exclude" for k in v):
+        raise error("self_collision", "expected a mapping with the key exclude")
+    exclude = v.get("exclude") or {}
+    ok = isinstance(exclude, dict) and all(
+        isinstance(a, str) and isinstance(bs, list) and all(isinstance(b, str) for b in bs)
+        for a, bs in exclude.items())
+    if not ok:
+        raise error("self_collision.exclude", "expected a mapping {link or sphere label: [links or labels]}")
+    return tuple((a, b) for a, bs in exclude.items() for b in bs)
 
 
 # ------------------------------------------------------------------------------------------ model folders

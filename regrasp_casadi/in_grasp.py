@@ -24,6 +24,7 @@ from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
 from regrasp_casadi.constants import K_ORIENT, K_POS
 from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
+from regrasp_casadi.self_collision import SelfCollisionConstraint
 from regrasp_casadi.signed_distance import DEFAULT_TAU
 from regrasp_casadi.transforms import interpolate_pose, inv_T, kabsch, log_SO3, make_T
 
@@ -75,6 +76,8 @@ class InGraspResult(_solver.SolveStats):
     """Smallest exact distance of a non-tip sphere to the object, m."""
     surface_error: float
     """Largest |SD_exact(tip centre) − tip radius| over the fingers, m."""
+    min_self_clearance: float = float("inf")
+    """Smallest surface distance of the constrained self-collision sphere pairs, m (inf: none)."""
 
 
 @dataclass(frozen=True)
@@ -212,6 +215,12 @@ class InGraspNLP:
     and |w| per reposing. δ are exact-distance offsets (see FingerGaitNLP); the tips' distances use the
     local planes at their contacts (parameters, `ObjectModel.local_planes`), the other spheres the
     coarse pieces (`clearance_distance_function`: whole pieces, so a large move cannot leave them).
+
+    Self-collision (not in the paper; `options.self_clearance` = c, None: off): every sphere pair (a, b)
+    of two fingers, or of a finger and the palm, in `Hand.self_collision_pairs(within=c)` keeps
+    ``|c_a(Θ) − c_b(Θ)| − ρ_a − ρ_b ≥ c``, one smooth minimum per rigid-body pair
+    (`self_collision.SelfCollisionConstraint`); a pair already closer than c at the start keeps at least
+    its start value (no worse).
     """
 
     def __init__(self, hand: Hand, obj: ObjectModel, method: Literal["svd", "sd"] = "svd",
@@ -256,13 +265,18 @@ class InGraspNLP:
         sd_l = ca.vertcat(terms.smooth_signed_distances(sd_coarse, s_obj[:, :k]), *sd_tips)
         radii_all = np.concatenate([radii, np.full(m, hand.tip_radius)])
         g = _MM * (sd_l + P["delta_l"] - ca.DM(radii_all))
+        lbg = np.concatenate([np.full(k, _MM * o.beta), np.zeros(m)])
+        ubg = np.concatenate([np.full(k, np.inf), np.zeros(m)])
+        # self-collision: sphere pairs of different fingers and of a finger and the palm
+        self.self_collision = SelfCollisionConstraint.build(hand, None, o.self_clearance)
+        """The self-collision constraints (None: `self_clearance` None)."""
+        if self.self_collision is not None:
+            g, lbg, ubg = self.self_collision.extend(g, lbg, ubg, q, _MM)
         # bounds
         big_t, big_w = o.max_translation, o.max_rotation
         self._bounds = _solver.Bounds(
             lbx=np.concatenate([hand.q_lower, np.full(3, -big_t), np.full(3, -big_w)]),
-            ubx=np.concatenate([hand.q_upper, np.full(3, big_t), np.full(3, big_w)]),
-            lbg=np.concatenate([np.full(k, _MM * o.beta), np.zeros(m)]),
-            ubg=np.concatenate([np.full(k, np.inf), np.zeros(m)]))
+            ubx=np.concatenate([hand.q_upper, np.full(3, big_t), np.full(3, big_w)]), lbg=lbg, ubg=ubg)
         self._radii_all = radii_all
         # solver
         self._solver = _solver.build_solver(f"in_grasp_{method}", {"x": x, "p": p, "f": f, "g": g},
@@ -340,8 +354,11 @@ class InGraspNLP:
 
         x_start = np.concatenate([q, np.zeros(6)])
 
+        sc = self.self_collision
+        bounds, floor = (self._bounds, None) if sc is None else sc.bounds(self._bounds, q, _MM)
+
         def solve_with(x, delta):  # every solve starts at the grasp (x_start), warm multipliers aside
-            return self.warm_start.solve(self._solver, self._bounds, x0=x_start, p=params(delta))
+            return self.warm_start.solve(self._solver, bounds, x0=x_start, p=params(delta))
 
         def done(distances) -> bool:
             gap = distances[0] - self._radii_all  # exact distance − radius
@@ -355,9 +372,9 @@ class InGraspNLP:
             lambda x, distances, delta: self._offsets(*distances), offsets=self._offsets(*start),
             x=x_start, evaluation=start, max_solves=o.max_corrections + 1,
             accept=_solver.clipped_if_finite(self._bounds))
-        return self._result(corr, c_tips, params(zeros))
+        return self._result(corr, c_tips, params(zeros), floor)
 
-    def _result(self, corr: _solver.Correction, c_tips: NDArray, p_zero: NDArray) -> InGraspResult:
+    def _result(self, corr: _solver.Correction, c_tips: NDArray, p_zero: NDArray, floor) -> InGraspResult:
         """The move's result from the correction loop's last point, judged with the exact distances."""
         o = self.options
         x, exact = corr.x, corr.evaluation[0]
@@ -372,6 +389,11 @@ class InGraspNLP:
         # as Search_Direction_Becomes_Too_Small is still a valid reposing)
         ok = bool(np.all(np.isfinite(x)) and min_clear >= 0.0 and max_slip <= o.max_slip
                   and surface_error <= 1e-4)
+        sc, min_self = self.self_collision, float("inf")
+        if sc is not None and np.all(np.isfinite(q_new)):
+            min_self = sc.min_distance(q_new)
+            ok = ok and sc.holds(q_new, floor)
         return InGraspResult(q=q_new, T_palm_object=T_new, status=corr.status, success=ok,
                              iterations=corr.iterations, solve_time=corr.solve_time, max_slip=max_slip,
-                             min_clearance=min_clear, surface_error=surface_error)
+                             min_clearance=min_clear, surface_error=surface_error,
+                             min_self_clearance=min_self)

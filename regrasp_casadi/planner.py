@@ -94,6 +94,7 @@ class PlannerOptions:
         "beta": ("finger_gait", "in_grasp"),
         "tau": ("finger_gait", "in_grasp"),
         "print_level": ("finger_gait", "in_grasp"),
+        "self_clearance": ("finger_gait", "in_grasp"),
     }
     """Keyword overrides that set fields of the NLPs' options: name → the sub-options that get it."""
 
@@ -449,4 +450,6 @@ def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> s
     if not (options.zeta > 0 and gait.eta > 0 and gait.beta >= 0 and in_grasp.beta >= 0
             and options.max_iters >= 0):
         return "zeta and eta must be positive, beta and max_iters non-negative"
+    if any(c is not None and not c >= 0 for c in (gait.self_clearance, in_grasp.self_clearance)):
+        return "self_clearance must be non-negative or None (no self-collision constraints)"
     return grasp0.inconsistency("grasp0")

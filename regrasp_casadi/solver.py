@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from regrasp_casadi.constants import BETA
+from regrasp_casadi.constants import BETA, SELF_CLEARANCE
 
 __all__ = [
     "BACKEND",
@@ -84,8 +84,8 @@ class SolverOptions:
 @dataclass(frozen=True)
 class NLPOptions:
     """The options the planner's NLPs (OPT1, OPT2) have in common: the clearance β, the smooth distance
-    model that stands in for the mesh, the exact-offset correction (`correct_offsets`) and the solver's
-    verbosity; SI units. Each NLP's options extend these."""
+    model that stands in for the mesh, the exact-offset correction (`correct_offsets`), the solver's
+    verbosity and the self-clearance; SI units. Each NLP's options extend these."""
 
     beta: float = BETA
     """β, clearance the hand's non-contact spheres keep from the object, m (paper: 1 mm)."""
@@ -97,6 +97,10 @@ class NLPOptions:
     """Re-solves with exact-distance offsets after the first solve."""
     print_level: int = 0
     """Solver print level (0 = quiet)."""
+    self_clearance: float | None = SELF_CLEARANCE
+    """Clearance the spheres of different fingers, and of a finger and the palm, keep
+    (`Hand.self_collision_pairs`; OPT1: the moving finger's against the others), m; a pair closer than
+    this at the start of a solve may not get closer; None: no self-collision constraint (the paper's)."""
 
     def solver_options(self) -> SolverOptions:
         """The `SolverOptions` of the NLP (the defaults, with this print level)."""

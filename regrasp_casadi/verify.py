@@ -18,6 +18,8 @@ order. At every step:
 * gait steps: only the named finger's joints move, the object does not, and the tip centre moves at
   most `eta`;
 * repose / final steps: each finger's contact on the object moves at most `max_slip` (slip);
+* no self-collision (`self_clearance`; `regrasp_casadi.self_collision_checks`): sphere pairs of two fingers
+  or a finger and the palm, and the link meshes of different fingers (python-fcl, `link_meshes`);
 * the plan's claims: a "converged" plan's last step has max contact error ≤ `zeta`.
 
 A new check is one function `check_x(ctx, step_index, step) -> list[Finding]` and one row of
@@ -36,12 +38,14 @@ import sys
 import types
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi import constants
+from regrasp_casadi.self_collision_checks import check_self_collision, check_self_collision_mesh
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
 
@@ -95,7 +99,9 @@ class VerifyReport:
     violations: tuple[Violation, ...]
     """Every failed check, in step order (within a step, in `CHECK_TABLE` order)."""
     metrics: dict[str, Any]
-    """Figures of the plan: "min_clearance" (m) and "min_clearance_at" ({"step", "who"}),
+    """Figures of the plan: "min_clearance" (m) and "min_clearance_at" ({"step", "who"}), the same for
+    self-collision ("min_self_clearance", "min_self_clearance_at", sphere model), "max_mesh_penetration"
+    (m) and "mesh_check" (what the mesh check read, or why it was skipped),
     "max_surface_error", "max_gait_step", "max_slip", "final_avg_error", "final_max_error" (m, exact),
     "n_steps", and the stability metric (not a check): "min_holding_quality" (least Ferrari–Canny margin
     of the fingers holding the object during a gait, see `stability.holding_quality`; NaN without
@@ -116,6 +122,10 @@ class VerifyReport:
             f"{_mm(m.get('max_gait_step'))} mm, max slip {_mm(m.get('max_slip'))} mm",
             f"  final contact error avg {_mm(m.get('final_avg_error'))} mm, "
             f"max {_mm(m.get('final_max_error'))} mm",
+            f"  self-collision: min sphere clearance {_mm(m.get('min_self_clearance'))} mm"
+            + (f" (step {m['min_self_clearance_at']['step']}, {m['min_self_clearance_at']['who']})"
+               if m.get("min_self_clearance_at") else "")
+            + f"; mesh check: {m.get('mesh_check') or 'n/a'}",
             f"  stability (metric): {m.get('unstable_gaits', 0)} gaits whose other fingers are not in force "
             f"closure (μ = {(m.get('tolerances') or {}).get('mu', constants.MU):g}); least margin ε "
             f"{m.get('min_holding_quality', float('nan')):.4f}",
@@ -167,6 +177,8 @@ class Tolerances:
     and recomputed contact errors), m."""
     mu: float = constants.MU
     """Friction coefficient of the stability metric (not a check)."""
+    self_clearance: float | None = 0.0
+    """Required surface distance of every self-collision sphere pair, m (None: no self-collision check)."""
 
 
 @dataclass(frozen=True)
@@ -188,8 +200,10 @@ class VerifyContext:
     """What every check reads: the plan, its models, verify's tolerances, the exact geometry of every
     step (computed once, on first use) and the metrics the checks fill in."""
 
-    def __init__(self, plan: Plan, hand: Hand, obj: ObjectModel, tol: Tolerances):
+    def __init__(self, plan: Plan, hand: Hand, obj: ObjectModel, tol: Tolerances,
+                 link_meshes: str | Path | None = None):
         self.plan, self.hand, self.obj, self.tol = plan, hand, obj, tol
+        self.link_meshes_urdf = Path(link_meshes) if link_meshes is not None else hand.urdf_path
         self.fingers: tuple[str, ...] = tuple(hand.fingers)
         self.sphere_labels: list[str] = list(hand.sphere_labels())
         self.metrics: dict[str, Any] = {
@@ -198,6 +212,8 @@ class VerifyContext:
             "final_max_error": float("nan"), "n_steps": len(plan.steps),
             "min_holding_quality": float("inf"), "min_holding_quality_at": None, "unstable_gaits": 0,
             "tolerances": asdict(tol), "plan_options": dict(plan.options),
+            "min_self_clearance": float("inf"), "min_self_clearance_at": None, "max_mesh_penetration": 0.0,
+            "mesh_check": "",
         }
 
     @functools.cached_property
@@ -215,6 +231,19 @@ class VerifyContext:
         sd = np.asarray(sd, float).reshape(len(steps), m + len(radii))
         return ExactGeometry(p_palm_tips=tips, p_object_closest=closest[:, :m],
                              tip_gap=sd[:, :m] - float(hand.tip_radius), clearance=sd[:, m:] - radii)
+
+    @functools.cached_property
+    def self_pairs(self) -> tuple[tuple[int, int], ...]:
+        """Every self-collision sphere pair (indices into `hand.spheres`), none pruned."""
+        return self.hand.self_collision_pairs()
+
+    @functools.cached_property
+    def link_meshes(self):
+        """The `link_meshes.LinkMeshes` of the mesh check, or None (`metrics["mesh_check"]` says why)."""
+        from regrasp_casadi.link_meshes import LinkMeshes
+
+        meshes, self.metrics["mesh_check"] = LinkMeshes.from_urdf(self.link_meshes_urdf, self.hand)
+        return meshes
 
     @functools.cached_property
     def torque_reference(self) -> tuple[NDArray, float]:
@@ -401,6 +430,8 @@ CHECK_TABLE: tuple[Check, ...] = (
     Check("gait_object_moved", check_gait_object_moved),
     Check("gait_step", check_gait_step),
     Check("slip", check_slip),
+    Check("self_collision", check_self_collision),
+    Check("self_collision_mesh", check_self_collision_mesh),
     Check("converged_claim", check_converged_claim),
 )
 """Every check, in the order it runs on each step."""
@@ -432,7 +463,7 @@ def _record_final_metrics(ctx: VerifyContext) -> None:
     err = np.linalg.norm(ctx.exact.p_object_closest[-1] - ctx.plan.goal_contacts_object, axis=1)
     metrics["final_avg_error"] = float(np.mean(err))
     metrics["final_max_error"] = float(np.max(err))
-    for key in ("min_holding_quality", "min_clearance"):
+    for key in ("min_holding_quality", "min_clearance", "min_self_clearance"):
         if not np.isfinite(metrics[key]):
             metrics[key] = float("nan")
 
@@ -451,6 +482,8 @@ def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regra
     max_slip: float = 1e-3,
     contact_consistency_tol: float = 0.5e-3,
     mu: float = constants.MU,
+    self_clearance: float | None = 0.0,
+    link_meshes: str | Path | None = None,
 ) -> VerifyReport:
     """Check a plan with exact geometry and verify's own tolerances; never raises for a bad plan, reports it.
 
@@ -470,6 +503,10 @@ def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regra
         contact_consistency_tol: allowed distance between a stored contact and the exact closest
             point of its tip centre (and between stored and recomputed contact errors), m.
         mu: friction coefficient of the stability metric (force closure of the holding fingers).
+        self_clearance: required surface distance of every self-collision sphere pair (different fingers,
+            a finger and the palm), m; None: no self-collision check (spheres nor meshes).
+        link_meshes: a URDF with link meshes (same link and joint names as the hand's, e.g. the vendor
+            URDF) for the mesh check; default: the hand's own URDF, if it has link meshes.
 
     Returns:
         VerifyReport with ok, violations and metrics.
@@ -484,8 +521,9 @@ def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regra
     hand, obj = plan_models(plan, hand, obj)
     tol = Tolerances(surface_tol=float(surface_tol), min_clearance=float(min_clearance),
                      limit_tol=float(limit_tol), eta=float(eta), zeta=float(zeta), max_slip=float(max_slip),
-                     contact_consistency_tol=float(contact_consistency_tol), mu=float(mu))
-    ctx = VerifyContext(plan, hand, obj, tol)
+                     contact_consistency_tol=float(contact_consistency_tol), mu=float(mu),
+                     self_clearance=None if self_clearance is None else float(self_clearance))
+    ctx = VerifyContext(plan, hand, obj, tol, link_meshes)
     problem = _plan_form_problem(ctx)
     if problem:
         return _report([Violation(-1, "structure", "", 0.0, 0.0, problem)], ctx.metrics)

