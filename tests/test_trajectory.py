@@ -28,8 +28,9 @@ LIFT = 0.005  # the default lift height, m
 # ------------------------------------------------------------------------------------- the box instance
 @pytest.fixture(scope="module")
 def box():
-    """problems/box_rotate.yaml: hand, box object, its half extents (m) and the initial grasp."""
-    problem = RegraspProblem.load(REPO / "problems" / "box_rotate.yaml")
+    """The box_rotate problem as shipped before the self-collision regeneration (tests/data; its index
+    finger has room to slide 8 mm up its face): hand, box object, its half extents (m), initial grasp."""
+    problem = RegraspProblem.load(REPO / "tests" / "data" / "box_rotate_pre_self_collision.yaml")
     half = np.asarray(problem.obj.spec["extents"], dtype=float) / 2.0
     q0, T0 = np.asarray(problem.grasp0.q), np.asarray(problem.grasp0.T_palm_object)
     return problem.hand, problem.obj, half, q0, T0
