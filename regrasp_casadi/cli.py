@@ -129,7 +129,7 @@ def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, ela
         print("wrote " + ", ".join(written))
     if plan.status == "converged" and report.ok:
         return EXIT_OK
-    return EXIT_FAILED
+    return EXIT_INTERRUPTED if plan.status == "interrupted" else EXIT_FAILED
 
 
 def _load_plan(path: str) -> Plan:

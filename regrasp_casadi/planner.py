@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from regrasp_casadi.constants import ZETA
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
+from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.solver import NLPCache
 from regrasp_casadi.stability import holding_quality, torque_reference
@@ -352,8 +353,9 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     Returns:
         A `Plan` whose `status` says why it stopped: "converged", "iteration_limit", "stalled" (no
         progress for `stall_limit` iterations), "solver_failure" (with the step and IPOPT's status in
-        `status_detail`) or "invalid_input". A failed solve never raises: the plan ends with the steps
-        so far.
+        `status_detail`), "interrupted" (Ctrl-C: the current solve finishes, the plan holds the steps
+        so far; a second Ctrl-C raises KeyboardInterrupt) or "invalid_input". A failed solve never
+        raises: the plan ends with the steps so far.
     """
     t_start = time.perf_counter()
     options = (options or PlannerOptions()).with_overrides(**overrides)
@@ -361,6 +363,14 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     if problems:
         return _make_plan(grasp0, grasp_goal, options, t_start, None, "invalid_input", problems)
     run = _Run(grasp0, grasp_goal, options, _DEFAULT_CACHE if cache is None else cache)
+    with deferred_interrupts() as stop:
+        return _iterate(grasp0, grasp_goal, options, t_start, run, progress, stop)
+
+
+def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
+             progress: ProgressCallback | None, stop: InterruptRequest) -> Plan:
+    """Algorithm 1's loop: gait rounds and reposings until the contacts are within ζ, the iteration
+    limit, a stall, or a Ctrl-C (`stop`: the plan so far, status "interrupted")."""
     watch = _ProgressWatch(options, run.largest_error())
     while run.largest_error() > options.zeta and run.iterations < options.max_iters:
         run.failures.clear()
@@ -373,6 +383,10 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         if progress is not None:
             progress(run.iterations, options.max_iters, run.errors[-1])
         watch.update(run.largest_error())
+        if stop.requested:
+            return _make_plan(grasp0, grasp_goal, options, t_start, run, "interrupted",
+                              f"interrupted (Ctrl-C) after {run.iterations} iterations; largest contact "
+                              f"error {run.largest_error() * 1e3:.2f} mm")
         if watch.exhausted:
             if run.failures and len(run.steps) == n_steps_before:  # the last iteration could not move
                 return _make_plan(grasp0, grasp_goal, options, t_start, run, "solver_failure",
