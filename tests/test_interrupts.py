@@ -75,10 +75,11 @@ def test_cli_ctrl_c_writes_the_partial_plan_and_exits_130(tmp_path):
         "    return original(*a, progress=hook, **k)\n"
         "planner.plan_regrasp = plan_regrasp\n"
         "from regrasp_casadi.cli import main\n"
-        f"sys.exit(main(['plan', {str(REPO / 'problems' / 'bottle_regrasp.yaml')!r}, '--out', {str(out)!r}]))\n"
+        f"problem = {str(REPO / 'problems' / 'bottle_regrasp.yaml')!r}\n"
+        f"sys.exit(main(['plan', problem, '--out', {str(out)!r}]))\n"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                          cwd=tmp_path)
+                          cwd=tmp_path, check=False)
     assert proc.returncode == 130, proc.stderr[-2000:]
     plan = Plan.load(out)
     assert plan.status == "interrupted" and plan.iterations == 1 and len(plan.steps) > 1
