@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from regrasp_casadi.constants import ZETA
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
+from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.plan import Plan, PlanStep
@@ -350,6 +351,9 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         cache: where the NLPs are kept between plans (default: the process-wide cache that
             `clear_nlp_cache` clears).
 
+    Raises:
+        TypeError: `grasp0` or `grasp_goal` is not a `Grasp` (the message names the argument).
+
     Returns:
         A `Plan` whose `status` says why it stopped: "converged", "iteration_limit", "stalled" (no
         progress for `stall_limit` iterations), "solver_failure" (with the step and IPOPT's status in
@@ -358,6 +362,8 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         raises: the plan ends with the steps so far.
     """
     t_start = time.perf_counter()
+    require_grasp(grasp0, "grasp0")
+    require_grasp(grasp_goal, "grasp_goal")
     options = (options or PlannerOptions()).with_overrides(**overrides)
     problems = _check_input(grasp0, grasp_goal, options)
     if problems:

@@ -437,3 +437,14 @@ def test_bench_takes_ycb_names(tmp_path, monkeypatch, capsys):
     assert "YCB meshes not found" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         bench.main(["--objects", "005_tomato_soup_can"])
+
+
+def test_plan_regrasp_names_the_argument_that_is_not_a_grasp():
+    from regrasp_casadi.planner import plan_regrasp
+    from regrasp_casadi.problem import RegraspProblem
+
+    with pytest.raises(TypeError, match="grasp0: expected a Grasp"):
+        plan_regrasp(None, None)
+    problem = RegraspProblem.load(BOX_PROBLEM)
+    with pytest.raises(TypeError, match="grasp_goal: expected a Grasp.*got dict"):
+        plan_regrasp(problem.grasp0, {"contacts": []})
