@@ -11,6 +11,21 @@ and the process CPU time is that of the plan alone) and the build time (reported
 
     python benchmarks/self_collision.py --out /tmp/selfcol.json            # shipped problems
     python benchmarks/self_collision.py --ycb --out /tmp/selfcol_ycb.json  # + the paper pairs
+
+Measured (results/self_collision.json; 2 cores shared with other jobs, load 5-6, so times are inflated;
+"verified" includes both self-collision rows, with the vendor meshes of ../shared/reference):
+
+| problems | self-collision | converged | verified | plans through a self-collision (spheres / meshes, max depth) | median plan s (wall, no builds) | median build s |
+|---|---|---|---|---|---|---|
+| shipped (regenerated with the constraint), 8 | off | 8 | 4 (8 without the self-collision rows) | 4 / 1, 2.1 mm | 1.23 | 0.96 |
+| shipped, 8 | on (1 mm) | 8 | 8 | 0 / 0 | 2.05 | 5.4 |
+| YCB pairs (generated before it), 50 | off | 45 | 4 (50 without) | 46 / 44, 13.4 mm | 12.5 | 6.1 |
+| YCB pairs, 50 | on | 28 | 13 (8 of them converged) | 36 / 32, 13.3 mm | 24.2 | 15.5 |
+
+The YCB pairs themselves: 22 of 25 have a grasp in sphere self-collision (initial 18, desired 14), 21 of 25
+on the vendor meshes (up to 11.2 mm); the three that do not (pringles_0, 1, 4) converge and verify with
+both methods and the constraint on. Plans that start in self-collision never get worse (the floors) but
+keep the initial overlap, so they fail verify at step 0 whatever the planner does.
 """
 
 from __future__ import annotations
