@@ -24,8 +24,8 @@ Measured (results/self_collision.json; 2 cores shared with other jobs, load 5-6,
 
 The YCB pairs themselves: 22 of 25 have a grasp in sphere self-collision (initial 18, desired 14), 21 of 25
 on the vendor meshes (up to 11.2 mm); the three that do not (pringles_0, 1, 4) converge and verify with
-both methods and the constraint on. Plans that start in self-collision never get worse (the floors) but
-keep the initial overlap, so they fail verify at step 0 whatever the planner does.
+both methods and the constraint on. A plan that starts in self-collision may not make an overlap worse
+(the constraints' floors) and often resolves it, but its step 0 fails verify whatever the planner does.
 """
 
 from __future__ import annotations
