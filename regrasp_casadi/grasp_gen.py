@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import collections
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -36,9 +37,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from regrasp_casadi.certificates import force_closure_certificate
 from regrasp_casadi.constants import BETA, MU, SELF_CLEARANCE
 from regrasp_casadi.errors import GraspError
 from regrasp_casadi.grasp import Grasp
+from regrasp_casadi.grasp_feasibility import TIP_SPACING, UngraspableError, check_graspable
 from regrasp_casadi.grasp_nlp import SURFACE_TOL, GraspNLP, grasp_nlp, solve_exact
 from regrasp_casadi.hand import Hand
 from regrasp_casadi.objects import ObjectModel
@@ -47,6 +50,7 @@ from regrasp_casadi.transforms import exp_so3, inv_T, make_T, transform_points
 
 __all__ = [
     "SURFACE_TOL",
+    "UngraspableError",
     "force_closure_quality",
     "grasp_quality",
     "generate_grasps",
@@ -58,7 +62,7 @@ log = logging.getLogger(__name__)
 _N_WORKSPACE = 20000  # joint samples for the fingertip workspaces
 _N_SURFACE = 3000  # surface samples for contact targets
 _REACH_TOL = 0.006  # a target is reachable if a workspace sample lies within this distance, m
-_TIP_SPACING = 0.03  # minimum distance between two fingertip targets, m
+_TIP_SPACING = TIP_SPACING  # minimum distance between two fingertip targets, m (0.03)
 _MIN_QUALITY = 1e-3  # force-closure margin a generated grasp must exceed
 _CONE_SHRINK = float(np.cos(np.pi / FRICTION_EDGES))
 """Generated grasps are tested with μ·cos(π/8): the circle of that radius lies inside every 8-edge
@@ -337,13 +341,29 @@ def _attempt(search: _Search, rng, guess, away: _Away | None) -> Grasp | None:
     if problem:
         _STATS[problem] += 1
         return None
-    quality = grasp_quality(grasp, mu * _CONE_SHRINK)
-    if quality <= _MIN_QUALITY:
-        log.debug("rejected: force-closure margin %.4g", quality)
+    if not _force_closure(grasp, mu):
         _STATS["force_closure"] += 1
         return None
     _STATS["ok"] += 1
     return grasp
+
+
+def _force_closure(grasp: Grasp, mu: float) -> bool:
+    """The stability rule: the Ferrari–Canny margin (`grasp_quality`, μ·cos(π/8)) exceeds `_MIN_QUALITY`
+    and the force-closure LP of `certificates.force_closure_certificate` (same contacts, normals, shrunk
+    μ, torque reference) certifies the grasp."""
+    quality = grasp_quality(grasp, mu * _CONE_SHRINK)
+    if quality <= _MIN_QUALITY:
+        log.debug("rejected: force-closure margin %.4g", quality)
+        return False
+    c = np.asarray(grasp.contacts_object, float)
+    normals = np.asarray(grasp.tip_centers_object, float) - c
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    com, length = torque_reference(grasp.obj.mesh)
+    cert = force_closure_certificate(c, normals, mu * _CONE_SHRINK, com, length)
+    if not cert.ok:
+        log.debug("rejected: %s", cert.detail)
+    return cert.ok
 
 
 def _clearance_problem(grasp: Grasp, nlp: GraspNLP) -> str:
@@ -403,8 +423,11 @@ def generate_grasps(
         `n` grasps (with joints).
 
     Raises:
+        UngraspableError: before any solve, if the object is too small, too large or too thin for a
+            precision grasp of the hand (`grasp_feasibility.check_graspable`; `reason` names which).
         GraspError: if fewer than `n` grasps were found within `max_attempts`.
     """
+    check_graspable(hand, obj, self_clearance)
     return _generate(_search(hand, obj, mu, beta, self_clearance), n, seed, T_palm_object_guess,
                      max_attempts, progress=progress)
 
@@ -428,7 +451,7 @@ def _generate(search: _Search, n: int, seed: int, guess, max_attempts: int | Non
                      f"(seed {seed})")
 
 
-def generate_regrasp_pairs(
+def generate_regrasp_pairs(  # noqa: PLR0913 (the models, the count and keyword-only knobs)
     hand: Hand,
     obj: ObjectModel,
     n_pairs: int,
@@ -440,6 +463,7 @@ def generate_regrasp_pairs(
     max_attempts: int = 40,
     progress: Callable[[int, int], None] | None = None,
     self_clearance: float | None = SELF_CLEARANCE,
+    max_seconds: float | None = None,
 ) -> list[tuple[Grasp, Grasp]]:
     """Pairs (initial grasp, desired grasp) for regrasp planning.
 
@@ -459,16 +483,24 @@ def generate_regrasp_pairs(
         max_attempts: attempts per desired grasp before drawing a new initial grasp.
         progress: optional callable ``progress(found, attempts)`` called after every initial grasp tried.
         self_clearance: self-clearance of both grasps, m (see `generate_grasps`); None: unconstrained.
+        max_seconds: wall-time budget, s: no new initial grasp is drawn after it (None: no budget).
 
     Returns:
         list of (grasp0, grasp_goal); both carry joints.
 
     Raises:
-        GraspError: if the pairs could not be found.
+        UngraspableError: before any solve, if the object is too small, too large or too thin for a
+            precision grasp of the hand (`grasp_feasibility.check_graspable`).
+        GraspError: if the pairs could not be found (within `max_seconds`, if given).
     """
+    check_graspable(hand, obj, self_clearance)
+    t_end = None if max_seconds is None else time.monotonic() + float(max_seconds)
     search = _search(hand, obj, mu, beta, self_clearance)
     pairs: list[tuple[Grasp, Grasp]] = []
     for i in range(20 * n_pairs):
+        if t_end is not None and time.monotonic() > t_end:
+            raise GraspError(f"found {len(pairs)} of {n_pairs} regrasp pairs on {obj.name!r} in the "
+                             f"{max_seconds:g} s budget (seed {seed}, {i} initial grasps tried)")
         init = _generate(search, 1, seed * 100003 + i, None, 60)[0]
         try:
             goal = _generate(search, 1, seed * 100003 + 50000 + i, init.T_palm_object, max_attempts,

@@ -91,8 +91,10 @@ def test_regrasp_pair_properties(hand, box):
 
 def test_impossible_object_raises(hand):
     huge = ObjectModel.box((0.4, 0.4, 0.4))
-    with pytest.raises(GraspError, match="0 of 1"):
+    with pytest.raises(GraspError, match="too large"):
         generate_grasps(hand, huge, n=1, seed=0, max_attempts=3)
+    with pytest.raises(GraspError, match="0 of 1"):  # passes the size checks, no attempts to find one
+        generate_grasps(hand, ObjectModel.box((0.05, 0.07, 0.12)), n=1, seed=0, max_attempts=0)
 
 
 # ------------------------------------------------------------------------ force closure, closed forms
