@@ -14,7 +14,9 @@ piece, its hull, `convex.is_near_convex`), pieces, planes, build time (coacd und
 *over-cover* error, how far the pieces' union reaches beyond the mesh (`convex.decomposition_error`:
 where hulls bridge a concavity or fill a cavity). `--sweep T1 T2 ...` decomposes each non-convex
 generated object at those coacd thresholds and picks the first threshold whose successor improves the
-over-cover p99 by less than 25 % (results/geometry_sweep.json).
+over-cover p99 by less than 25 % (results/geometry_sweep.json). `--sweep-pieces N1 N2 ...` does the same
+over coacd's piece cap (`piece_count.choose_piece_count`: the cap where the over-cover p99 stops
+improving by 25 % or 0.2 mm), reporting pieces, planes, error and time per cap.
 
 Targets: surface |smooth − exact| ≤ 0.5 mm for 99 % of samples; no sign error beyond 1 mm; outside,
 smooth − exact ≤ τ·log k_max; one distance+gradient evaluation ≤ 20 µs.
@@ -231,6 +233,20 @@ def sweep(name: str, mesh, thresholds: list[float], max_seconds: float) -> dict:
     return {"object": name, "rows": rows, "chosen_threshold": chosen}
 
 
+def piece_sweep(name: str, mesh, counts: list[int], max_seconds: float) -> dict:
+    """`piece_count.choose_piece_count` at coacd caps `counts`: pieces, planes, over-cover error and time
+    per cap, and the cap where the error stops improving."""
+    from regrasp_casadi.piece_count import choose_piece_count
+
+    choice = choose_piece_count(mesh, counts, max_seconds=max_seconds, name=name)
+    rows = [{"cap": r.cap, "pieces": r.pieces, "planes": r.planes, "overcover_p99_mm": r.p99_m * 1e3,
+             "overcover_max_mm": r.max_m * 1e3, "time_s": r.seconds} for r in choice.rows]
+    for r in rows:
+        print(f"  pieces {name} cap {r['cap']}: {r['pieces']} pieces, {r['planes']} planes, "
+              f"{r['time_s']:.1f} s, over-cover p99 {r['overcover_p99_mm']:.2f} mm", file=sys.stderr, flush=True)
+    return {"object": name, "rows": rows, "chosen_cap": choice.chosen}
+
+
 def _cases(args) -> list[tuple[str, object]]:
     """(name, constructor) of the generated objects and YCB meshes asked for."""
     cases = [(k, v) for k, v in GENERATED.items() if not args.objects or k in args.objects]
@@ -281,6 +297,8 @@ def main() -> None:
     ap.add_argument("--objects", nargs="+", help="only these generated objects / YCB names")
     ap.add_argument("--sweep", type=float, nargs="+", metavar="T",
                     help="also decompose each non-convex generated object at these coacd thresholds")
+    ap.add_argument("--sweep-pieces", type=int, nargs="+", metavar="N",
+                    help="also choose coacd's piece cap among these by over-cover error (piece_count)")
     ap.add_argument("--max-seconds", type=float, default=convex.DEFAULT_MAX_SECONDS,
                     help="time cap of one sweep decomposition, s")
     ap.add_argument("--use-cache", action="store_true", help="use the user's decomposition cache")
@@ -291,13 +309,20 @@ def main() -> None:
     cases = _cases(args)
     results = []
     sweeps = []
+    piece_sweeps: list[dict] = []
     for name, make in cases:
         r = evaluate(name, make, args.n)
         results.append(r)
         print(f"done {name}: surface p99 {r['surface']['p99_mm']:.2f} mm", file=sys.stderr, flush=True)
         if args.sweep and r["hull_distance_mm"] > 1e-6 and name in GENERATED:
             sweeps.append(sweep(name, make().mesh, args.sweep, args.max_seconds))
+        if args.sweep_pieces and r["hull_distance_mm"] > 1e-6 and name in GENERATED:
+            piece_sweeps.append(piece_sweep(name, make().mesh, args.sweep_pieces, args.max_seconds))
     print_decomposition(results, sweeps)
+    for ps in piece_sweeps:
+        print(f"{ps['object']}: chosen cap {ps['chosen_cap']}; " + "; ".join(
+            f"cap {r['cap']}: {r['pieces']} pieces / {r['planes']} planes, p99 {r['overcover_p99_mm']:.2f} mm, "
+            f"{r['time_s']:.0f} s" for r in ps["rows"]))
     hdr = ("| object | pieces | planes | decomp s | surface p50/95/99/max mm | hard / all-planes p99 mm | "
            "inside p99/max mm | outside p99/max mm | out excess / bound mm | sign err (>1 mm) | "
            "f call µs | f+grad call µs | f+grad VM µs/pt SX / MX |")
@@ -324,7 +349,8 @@ def main() -> None:
     out.write_text(json.dumps({"machine": info, "n_samples": args.n, "thresholds": args.thresholds,
                                "near_convex_rule": {"hull_distance_m": convex.DEFAULT_HULL_TOLERANCE,
                                                     "hull_volume_excess": convex.HULL_VOLUME_TOLERANCE},
-                               "results": results, "sweeps": sweeps}, indent=1))
+                               "results": results, "sweeps": sweeps,
+                               "piece_sweeps": piece_sweeps}, indent=1))
 
 
 if __name__ == "__main__":

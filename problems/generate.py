@@ -1,6 +1,7 @@
 """Generate the shipped problem files (`problems/*.yaml`) with `regrasp_casadi.grasp_gen` (seeded).
 
-Each file is a regrasp pair on a generated object (box, cylinder, bottle): an initial four-finger
+Each file is a regrasp pair on a generated object (box, cylinder, bottle, flat tool, sphere): an initial
+four-finger
 precision grasp (joints + object pose) and a desired grasp (contacts + object pose, joints kept for
 reference), both force closure with μ = 0.5, tips on the exact surface within 0.1 mm, no other
 hand–object contact, no self-collision (the spheres of different fingers and of a finger and the palm
@@ -73,6 +74,14 @@ PROBLEMS = {
         ObjectModel.bottle, 4, 3, _nearest_moderate,
         "Bottle (body r = 0.03 m, 0.19 m tall); a regrasp to contacts on average >= 3 cm away (object "
         "turned by at most 30 deg where a candidate allows)."),
+    "flat_tool_regrasp": (
+        ObjectModel.flat_tool, 0, 2, _nearest_moderate,
+        "Flat spatula-like tool, 0.2 m long and 15 mm thick (issue 12's thin-object class); fingertips to "
+        "contacts on average >= 3 cm away (object turned by at most 30 deg where a candidate allows)."),
+    "sphere_regrasp": (
+        lambda: ObjectModel.sphere(0.035), 1, 1, _nearest_moderate,
+        "Sphere of 7 cm (a baseball; issue 12's body-of-revolution class); fingertips to contacts on "
+        "average >= 3 cm away."),
 }
 
 
