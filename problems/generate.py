@@ -1,8 +1,7 @@
 """Generate the shipped problem files (`problems/*.yaml`) with `regrasp_casadi.grasp_gen` (seeded).
 
 Each file is a regrasp pair on a generated object (box, cylinder, bottle, flat tool, sphere): an initial
-four-finger
-precision grasp (joints + object pose) and a desired grasp (contacts + object pose, joints kept for
+four-finger precision grasp (joints + object pose) and a desired grasp (contacts + object pose, joints kept for
 reference), both force closure with μ = 0.5, tips on the exact surface within 0.1 mm, no other
 hand–object contact, no self-collision (the spheres of different fingers and of a finger and the palm
 1 mm apart, `constants.SELF_CLEARANCE`), and goal contacts on average ≥ 3 cm from the initial ones
