@@ -64,6 +64,7 @@ _N_SURFACE = 3000  # surface samples for contact targets
 _REACH_TOL = 0.006  # a target is reachable if a workspace sample lies within this distance, m
 _TIP_SPACING = TIP_SPACING  # minimum distance between two fingertip targets, m (0.03)
 _MIN_QUALITY = 1e-3  # force-closure margin a generated grasp must exceed
+_PRECHECK = 2.0  # the targets (surface points, face normals) must exceed _PRECHECK · _MIN_QUALITY
 _CONE_SHRINK = float(np.cos(np.pi / FRICTION_EDGES))
 """Generated grasps are tested with μ·cos(π/8): the circle of that radius lies inside every 8-edge
 polygon of radius μ, so the grasp is in force closure however the linearised cones are turned."""
@@ -249,7 +250,7 @@ def _pick_targets(search: _Search, T, rng, away: _Away | None, tries: int = 12):
         idx = _pick_targets_once(search.hand, data, search.ws, T, rng, away)
         if idx is not None and force_closure_quality(data.points[idx], data.normals[idx],
                                                      search.mu * _CONE_SHRINK, data.com,
-                                                     data.length) > 2 * _MIN_QUALITY:
+                                                     data.length) > _PRECHECK * _MIN_QUALITY:
             return idx
     return None
 
