@@ -1,8 +1,8 @@
 """Generate the shipped problem files (`problems/*.yaml`) with `regrasp_casadi.grasp_gen` (seeded).
 
-Each file is a regrasp pair on a generated object (box, cylinder, bottle, flat tool, sphere): an initial
-four-finger precision grasp (joints + object pose) and a desired grasp (contacts + object pose, joints kept for
-reference), both force closure with μ = 0.5, tips on the exact surface within 0.1 mm, no other
+Each file is a regrasp pair on a generated object (box, cylinder, bottle, flat tool): an initial
+four-finger precision grasp (joints + object pose) and a desired grasp (contacts + object pose, joints kept
+for reference), both force closure with μ = 0.5, tips on the exact surface within 0.1 mm, no other
 hand–object contact, no self-collision (the spheres of different fingers and of a finger and the palm
 1 mm apart, `constants.SELF_CLEARANCE`), and goal contacts on average ≥ 3 cm from the initial ones
 (object frame).
@@ -77,10 +77,6 @@ PROBLEMS = {
         ObjectModel.flat_tool, 0, 2, _nearest_moderate,
         "Flat spatula-like tool, 0.2 m long and 15 mm thick (issue 12's thin-object class); fingertips to "
         "contacts on average >= 3 cm away (object turned by at most 30 deg where a candidate allows)."),
-    "sphere_regrasp": (
-        lambda: ObjectModel.sphere(0.035), 1, 1, _nearest_moderate,
-        "Sphere of 7 cm (a baseball; issue 12's body-of-revolution class); fingertips to contacts on "
-        "average >= 3 cm away."),
 }
 
 
