@@ -8,10 +8,10 @@ judged by `verify`. Targets (issue 12): a pair in ≤ 60 s (median ≤ 20 s) on 
 pairs converged and verified per class and method.
 
     nice -n 10 python benchmarks/objects.py [--pairs 3] [--budget 60] [--classes sphere flat_tool ...]
-                                            [--no-plan] [--out benchmarks/results/objects.json]
+                                            [--no-plan] [--append] [--out FILE]
 
-Writes the records with `machine.machine_info()` (CPU, load, versions, git commit) and prints a
-Markdown table (the one in benchmarks/README.md).
+Writes each class's record with `machine.machine_info()` (CPU, load, versions, git commit) to
+benchmarks/results/objects.json and prints a Markdown table (the one in benchmarks/README.md).
 """
 
 from __future__ import annotations
@@ -135,18 +135,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--classes", nargs="*", choices=list(CLASSES), default=list(CLASSES))
     parser.add_argument("--no-plan", action="store_true", help="only generate the pairs")
     parser.add_argument("--out", type=pathlib.Path, default=HERE / "results" / "objects.json")
+    parser.add_argument("--append", action="store_true",
+                        help="keep the records of the classes not run from an existing --out file")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(HERE))
     from machine import machine_info
 
     hand = Hand.allegro_right()
     records = []
+    if args.append and args.out.is_file():  # keep the other classes' records (each carries its machine)
+        records = [r for r in json.loads(args.out.read_text())["records"] if r["class"] not in args.classes]
     for name in args.classes:
-        records.append(run_class(hand, name, args.pairs, args.budget, not args.no_plan))
-        rows = [summary(r) for r in records]
+        record = run_class(hand, name, args.pairs, args.budget, not args.no_plan)
+        record.update(machine=machine_info(), pairs_asked=args.pairs, budget_s=args.budget)
+        records.append(record)
+        records.sort(key=lambda r: list(CLASSES).index(r["class"]))
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps({"machine": machine_info(), "pairs_per_class": args.pairs,
-                                        "budget_s": args.budget, "summary": rows, "records": records},
+        args.out.write_text(json.dumps({"summary": [summary(r) for r in records], "records": records},
                                        indent=1))
     print(markdown([summary(r) for r in records]))
     return 0
