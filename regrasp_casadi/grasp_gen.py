@@ -434,11 +434,14 @@ def generate_grasps(
 
 
 def _generate(search: _Search, n: int, seed: int, guess, max_attempts: int | None, *,
-              away: _Away | None = None, progress=None) -> list[Grasp]:
-    """`n` grasps from the attempts seeded (`seed`, attempt); see `generate_grasps`."""
+              away: _Away | None = None, progress=None, deadline: float | None = None) -> list[Grasp]:
+    """`n` grasps from the attempts seeded (`seed`, attempt); see `generate_grasps`. No attempt starts
+    after `deadline` (`time.monotonic()`, s; None: no deadline)."""
     max_attempts = 60 * n if max_attempts is None else int(max_attempts)
     out: list[Grasp] = []
     for attempt in range(max_attempts):
+        if deadline is not None and time.monotonic() > deadline:
+            break
         g = _attempt(search, np.random.default_rng([seed, attempt]), guess, away)
         if g is not None and away is not None and not away.keeps(g.contacts_object):
             g = None
@@ -498,14 +501,22 @@ def generate_regrasp_pairs(  # noqa: PLR0913 (the models, the count and keyword-
     t_end = None if max_seconds is None else time.monotonic() + float(max_seconds)
     search = _search(hand, obj, mu, beta, self_clearance)
     pairs: list[tuple[Grasp, Grasp]] = []
+    def out_of_time(i: int) -> GraspError:
+        return GraspError(f"found {len(pairs)} of {n_pairs} regrasp pairs on {obj.name!r} in the "
+                          f"{max_seconds:g} s budget (seed {seed}, {i} initial grasps tried)")
+
     for i in range(20 * n_pairs):
         if t_end is not None and time.monotonic() > t_end:
-            raise GraspError(f"found {len(pairs)} of {n_pairs} regrasp pairs on {obj.name!r} in the "
-                             f"{max_seconds:g} s budget (seed {seed}, {i} initial grasps tried)")
-        init = _generate(search, 1, seed * 100003 + i, None, 60)[0]
+            raise out_of_time(i)
+        try:
+            init = _generate(search, 1, seed * 100003 + i, None, 60, deadline=t_end)[0]
+        except GraspError:
+            if t_end is not None and time.monotonic() > t_end:
+                raise out_of_time(i) from None
+            raise
         try:
             goal = _generate(search, 1, seed * 100003 + 50000 + i, init.T_palm_object, max_attempts,
-                             away=_Away(init.contacts_object, min_mean_distance))[0]
+                             away=_Away(init.contacts_object, min_mean_distance), deadline=t_end)[0]
         except GraspError:
             log.debug("pair %d: no desired grasp for this initial grasp", i)
             goal = None

@@ -148,3 +148,8 @@ def test_quality_agrees_with_lp_on_random_grasps():
             assert (eps > 0) == lp
             agree += 1
     assert agree >= 35 and 5 <= positives <= 35
+
+
+def test_time_budget_stops_pair_generation(hand, box):
+    with pytest.raises(GraspError, match="0 of 5 regrasp pairs .* in the 0 s budget"):
+        generate_regrasp_pairs(hand, box, 5, seed=0, max_seconds=0.0)
