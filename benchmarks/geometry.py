@@ -18,6 +18,13 @@ over-cover p99 by less than 25 % (results/geometry_sweep.json). `--sweep-pieces 
 over coacd's piece cap (`piece_count.choose_piece_count`: the cap where the over-cover p99 stops
 improving by 25 % or 0.2 mm), reporting pieces, planes, error and time per cap.
 
+Piece-cap sweep of the cup (`piece_count.choose_piece_count(cup_mesh(), (8, 16, 32, 64),
+max_seconds=240)`, the call `--sweep-pieces 8 16 32 64` makes; commit 91c3aa1, load ≈ 17 on 2 shared
+cores): cap 8 → 8 pieces / 1,242 planes, over-cover p99 / max 7.37 / 8.96 mm, 152 s; cap 16 → 16 / 2,323,
+3.78 / 4.01 mm, 144 s; cap 32 → 28 / 3,860, 1.24 / 1.61 mm, 121 s; cap 64 → 28 pieces again (coacd
+needs no more), so the chosen cap is 32. Not yet the primitives' default: the grasp NLP is too slow on
+3,860 planes (see benchmarks/README.md, `objects.py`).
+
 Targets: surface |smooth − exact| ≤ 0.5 mm for 99 % of samples; no sign error beyond 1 mm; outside,
 smooth − exact ≤ τ·log k_max; one distance+gradient evaluation ≤ 20 µs.
 
