@@ -58,8 +58,8 @@ _SOLVER_OPTIONS = _solver.SolverOptions(max_iter=100, tol=1e-10, acceptable_tol=
                                         linear_solver=None)
 """Tight tolerances and exact bounds: a generated grasp is checked to 0.1 mm with the exact distance. At
 most 100 iterations: on the 7 cm sphere 13 of 16 solves took 8–85 iterations and the other three 275–396
-(one infeasible), which cost 4/5 of the time for no more grasps (3 of 3 found either way; /tmp probe of
-issue 12), so a seed that needs more is abandoned for the next."""
+(one infeasible), which cost 4/5 of the time for no more grasps (`generate_grasps(hand, sphere(0.035),
+n=3, seed=0, max_attempts=40)` found 3 of 3 with either cap), so a seed that needs more is abandoned."""
 
 
 @dataclass(frozen=True)
