@@ -3,7 +3,7 @@
     regrasp plan PROBLEM.yaml --method svd --out plan.json [--html replay.html] [--view] [--max-iters N]
     regrasp verify plan.json [--all] [--zeta MM] [--eta MM] [--surface-tol MM] [--max-slip MM] ...
     regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]]
-    regrasp simulate plan.json [--gravity X Y Z] [--json report.json]
+    regrasp simulate plan.json [--gravity X Y Z] [--html sim.html] [--json report.json]
     regrasp export plan.json --csv traj.csv [--dt 0.01]
     regrasp grasps MESH_OR_PROBLEM [--hand MODEL] [--n N] [--seed S] [--out problems/x.yaml]
     regrasp bench [--backend process|ray|serial] [--address ADDR] [ARGS ...]
@@ -37,6 +37,7 @@ import traceback
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from regrasp_casadi.cli_simulate import add_simulate_parser
 from regrasp_casadi.cli_tools import (
     HelpFormatter,
     Parser,
@@ -231,33 +232,6 @@ def cmd_view(args: argparse.Namespace) -> int:
     return _view_live(plan, host=args.host)
 
 
-def cmd_simulate(args: argparse.Namespace) -> int:
-    """Execute a plan in MuJoCo; exit 0 when the object is held within tolerance, 1 when dropped or
-    deviating, 2 for bad input."""
-    import json
-
-    from regrasp_casadi.simulate import SimOptions, simulate
-
-    gravity = tuple(args.gravity) if args.gravity else (0.0, 0.0, 0.0)
-    out = check_output("--json", args.json)
-    plan = _load_plan(args.plan)
-    report = simulate(plan, options=SimOptions(gravity_palm=gravity))
-    print(report.summary())
-    opts = report.options
-    for rec in report.steps:
-        if (rec.deviation_mm > opts["tol_position"] * 1e3 or rec.deviation_deg > opts["tol_rotation"]
-                or len(rec.fingers_touching) < opts["min_fingers"]):
-            print(f"  first departure: step {rec.step} ({rec.kind}{' ' + rec.finger if rec.finger else ''}) "
-                  f"at t = {rec.time:.2f} s: {rec.deviation_mm:.2f} mm / {rec.deviation_deg:.2f} deg, "
-                  f"touching: {', '.join(rec.fingers_touching) or 'none'}")
-            break
-    if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(report.to_dict(), indent=1))
-        print(f"wrote {out}")
-    return EXIT_OK if report.held else EXIT_FAILED
-
-
 def cmd_export(args: argparse.Namespace) -> int:
     """Write the plan's joint trajectory, sampled every --dt s, as CSV: header `t,<joint names>`, then one
     row per sample (s, rad), the motion `Plan.sample` gives (paths, else linear between the steps)."""
@@ -430,16 +404,6 @@ def _add_verify_arguments(sp: argparse.ArgumentParser) -> None:
     sp.set_defaults(func=cmd_verify)
 
 
-def _add_simulate_parser(add) -> None:
-    """The `simulate` subcommand (``add(name, help)`` makes a subparser)."""
-    sp = add("simulate", "execute a plan in physics (MuJoCo) and report whether the object is held")
-    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
-    sp.add_argument("--gravity", type=_finite, nargs=3, metavar=("X", "Y", "Z"),
-                    help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81)")
-    sp.add_argument("--json", metavar="REPORT.json", help="write the simulation report as JSON")
-    sp.set_defaults(func=cmd_simulate)
-
-
 def _add_export_parser(add) -> None:
     """The `export` subcommand (``add(name, help)`` makes a subparser)."""
     sp = add("export", "write a plan's joint trajectory (time stamps and joint angles) as CSV for a robot "
@@ -516,7 +480,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_host(sp)
     sp.set_defaults(func=cmd_view)
 
-    _add_simulate_parser(add)
+    add_simulate_parser(add, finite=_finite, load_plan=_load_plan)
     _add_export_parser(add)
 
     sp = add("grasps", "generate precision grasps on a mesh (or a problem's object)")

@@ -44,6 +44,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = ["SimOptions", "SimReport", "StepRecord", "simulate", "plan_motion", "step_durations"]
 
+_MOTION_SERIES = ("q", "T_palm_object", "T_palm_object_plan")
+
+
 # ------------------------------------------------------------------------------------------ report
 @dataclass(frozen=True)
 class StepRecord:
@@ -108,7 +111,8 @@ class SimReport:
     series: dict = field(default_factory=dict)
     """Time series every `record_dt`: "t" (k,) s, "deviation_mm" (k,), "deviation_deg" (k,),
     "n_touching" (k,) fingers touching, "tip_normal_force" (k, m) N in `hand.fingers` order,
-    "other_normal_force" (k,) N, and the simulated motion: "q" (k, n) rad, "T_palm_object" (k, 4, 4)."""
+    "other_normal_force" (k,) N, and the simulated motion: "q" (k, n) rad, "T_palm_object" (k, 4, 4)
+    palm frame, with the plan's object pose at the same instants "T_palm_object_plan" (k, 4, 4)."""
 
     @property
     def held(self) -> bool:
@@ -138,12 +142,12 @@ class SimReport:
 
     def to_dict(self, motion: bool = False) -> dict[str, Any]:
         """JSON-ready dict of every field (``held`` included); the series' simulated motion ("q",
-        "T_palm_object") only with ``motion=True``."""
+        "T_palm_object", "T_palm_object_plan") only with ``motion=True``."""
         d = {k: v for k, v in self.__dict__.items() if k not in ("steps", "series")}
         d["held"] = self.held
         d["steps"] = [s.to_dict() for s in self.steps]
         d["series"] = {k: np.asarray(v).tolist() for k, v in self.series.items()
-                       if motion or k not in ("q", "T_palm_object")}
+                       if motion or k not in _MOTION_SERIES}
         return d
 
 
@@ -245,7 +249,7 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     step_at = {int(k): i for i, k in enumerate(ends)}
     series: dict[str, list] = {k: [] for k in ("t", "deviation_mm", "deviation_deg", "n_touching",
                                                "tip_normal_force", "other_normal_force", "q",
-                                               "T_palm_object")}
+                                               "T_palm_object", "T_palm_object_plan")}
     records, drop_time = [], None
     for k in range(len(Q)):
         if k <= n_settle:
@@ -268,6 +272,7 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
             series["other_normal_force"].append(other)
             series["q"].append(data.qpos[sim.qpos_hand].copy())
             series["T_palm_object"].append(probe.T_palm_object(data))
+            series["T_palm_object_plan"].append(np.asarray(T_ref[k], dtype=float))
             if drop_time is None and dev_mm > opts.drop_distance * 1e3:
                 drop_time = float(data.time)
     model.opt.gravity[:] = gravity

@@ -5,61 +5,23 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
+from sim_plans import BOX_SHIFT, GRAVITY_DOWN, lifted, make_plan
 
 from regrasp_casadi.mujoco_model import OBJECT_BODY, SimOptions, build_model
 from regrasp_casadi.sim_control import grip_forces, plan_motion, step_contacts, step_end_times
 from regrasp_casadi.simulate import simulate
 from regrasp_casadi.transforms import log_SO3
 
-# the box_shift problem as shipped before the self-collision constraint (issue 15): the measured motions
-# below are of its grasps and of its plan without that constraint (its fingers overlap; by default the
-# MuJoCo model does not collide hand bodies with each other, SimOptions.hand_self_collision)
-BOX_SHIFT = Path(__file__).resolve().parent / "data" / "box_shift_before_self_collision.yaml"
-GRAVITY_DOWN = (0.0, 0.0, -9.81)  # along −z of the palm frame (the fingers point up)
 
-
-# ------------------------------------------------------------------------------------------ helpers
 @pytest.fixture(scope="module")
 def box_problem():
     from regrasp_casadi import RegraspProblem
 
     return RegraspProblem.load(BOX_SHIFT)
-
-
-def _plan(hand, obj, steps) -> object:
-    """A Plan of (kind, finger, q, T_palm_object) steps; contacts = closest points of the tip centres."""
-    from regrasp_casadi import Plan, PlanStep
-
-    out = []
-    for kind, finger, q, T in steps:
-        p_object_tips = (hand.tip_positions(q) - T[:3, 3]) @ T[:3, :3]
-        contacts, _ = obj.closest_points(p_object_tips)
-        out.append(PlanStep(kind=kind, finger=finger, q=q, T_palm_object=T, contacts_object=contacts,
-                            contact_error=np.zeros(len(hand.fingers)), solver_status="", solve_time=0.0))
-    return Plan(steps=tuple(out), goal_contacts_object=out[-1].contacts_object,
-                goal_T_palm_object=out[-1].T_palm_object, fingers=tuple(hand.fingers),
-                hand_spec=hand.spec(), object_spec=obj.spec, method="svd", status="converged",
-                status_detail="", iterations=0, iteration_errors=np.zeros(1), timing={}, options={})
-
-
-def _lifted(hand, obj, q, T, finger: str, clearance: float = 0.02):
-    """q with ``finger``'s tip moved along the outward surface normal until ``clearance`` (m) clear."""
-    q = np.array(q, dtype=float)
-    k = list(hand.fingers).index(finger)
-    for _ in range(40):
-        p_object_tip = (hand.tip_positions(q)[k] - T[:3, 3]) @ T[:3, :3]
-        closest, d = obj.closest_points(p_object_tip[None])
-        if d[0] - hand.tip_radius > clearance:
-            return q
-        n_palm = T[:3, :3] @ ((p_object_tip - closest[0]) / np.linalg.norm(p_object_tip - closest[0]))
-        J = hand.tip_jacobian(q, finger)
-        q = hand.clip(q + J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(3), 0.004 * n_palm))
-    raise AssertionError(f"could not lift {finger} {clearance} m clear")
 
 
 # ------------------------------------------------------------------------------------------ the model
@@ -135,8 +97,8 @@ def test_sim_options_reject_bad_values():
 # ------------------------------------------------------------------------------------------ the motion
 def test_plan_motion_passes_through_the_steps_at_the_joint_speed(hand, box_problem):
     g0 = box_problem.grasp0
-    q1 = _lifted(hand, box_problem.obj, g0.q, g0.T_palm_object, "index", 0.01)
-    plan = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
+    q1 = lifted(hand, box_problem.obj, g0.q, g0.T_palm_object, "index", 0.01)
+    plan = make_plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
                                          ("gait", "index", q1, g0.T_palm_object),
                                          ("gait", "index", g0.q, g0.T_palm_object)])
     dt = 1e-3
@@ -155,7 +117,7 @@ def test_grip_forces_balance_gravity_within_the_cones(hand, box_problem):
     """Statics of the LP's forces: Σf = −m g and Σ (p − c) × f = 0, normal ≥ grip_force, |f_t| ≤ μ f_n;
     the three fingers on one face (thumb lifted) cannot balance anything (residual > 0)."""
     g0 = box_problem.grasp0
-    plan = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
+    plan = make_plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
     contacts = step_contacts(plan, hand)[0]
     opts = SimOptions()
     mass, com = 0.21, np.zeros(3)
@@ -179,7 +141,7 @@ def test_initial_grasp_is_held(hand, box_problem, gravity, hold):
     """box_shift's grasp0 held for `hold` s: measured 0.11 mm / 0.19° (off, 1 s) and 0.23 mm / 0.27°
     (gravity along −z of the palm, 2 s); the bound is 2 mm / 2°."""
     g0 = box_problem.grasp0
-    plan = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
+    plan = make_plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
     report = simulate(plan, hand, box_problem.obj, SimOptions(gravity_palm=gravity, hold_time=hold))
     assert report.held, report.summary()
     assert report.max_deviation_mm < 2.0 and report.max_deviation_deg < 2.0, report.summary()
@@ -196,8 +158,8 @@ def test_lifting_the_thumb_drops_the_box(hand, box_problem, finger, dropped):
     under gravity drops the box (deviation > 2 cm within 1 s of the settle); lifting the index instead
     leaves a force-closure grasp that holds (measured 0.27 mm / 0.50°)."""
     g0 = box_problem.grasp0
-    q1 = _lifted(hand, box_problem.obj, g0.q, g0.T_palm_object, finger)
-    plan = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
+    q1 = lifted(hand, box_problem.obj, g0.q, g0.T_palm_object, finger)
+    plan = make_plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
                                          ("gait", finger, q1, g0.T_palm_object)])
     opts = SimOptions(gravity_palm=GRAVITY_DOWN, hold_time=1.0)
     report = simulate(plan, hand, box_problem.obj, opts)
@@ -266,9 +228,9 @@ def test_cli_simulate_exit_codes_and_json(hand, box_problem, tmp_path, capsys):
     from regrasp_casadi import cli
 
     g0 = box_problem.grasp0
-    held = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
-    q1 = _lifted(hand, box_problem.obj, g0.q, g0.T_palm_object, "thumb")
-    dropped = _plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
+    held = make_plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
+    q1 = lifted(hand, box_problem.obj, g0.q, g0.T_palm_object, "thumb")
+    dropped = make_plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
                                             ("gait", "thumb", q1, g0.T_palm_object)])
     held.save(tmp_path / "held.json")
     dropped.save(tmp_path / "dropped.json")

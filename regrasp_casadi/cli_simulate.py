@@ -1,0 +1,65 @@
+"""The `regrasp simulate` subcommand: execute a plan in MuJoCo (`regrasp_casadi.simulate`).
+
+    regrasp simulate plan.json [--gravity X Y Z] [--html sim.html] [--json report.json]
+
+Exit codes (`regrasp_casadi.cli`): 0 the object is held within the tolerances, 1 it is dropped or deviates,
+2 bad input (missing or unreadable plan, bad number, unwritable output).
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+from collections.abc import Callable
+
+from regrasp_casadi.cli_tools import check_output
+
+__all__ = ["add_simulate_parser", "cmd_simulate"]
+
+EXIT_OK, EXIT_FAILED = 0, 1
+
+
+def cmd_simulate(args: argparse.Namespace, load_plan: Callable) -> int:
+    """Execute a plan in MuJoCo; print the summary line and the first departure from the plan; write the
+    JSON report and the HTML replay when asked. Exit 0 when the object is held within tolerance, 1 when
+    dropped or deviating (bad input raises, the caller maps it to 2)."""
+    from regrasp_casadi.simulate import SimOptions, simulate
+
+    gravity = tuple(args.gravity) if args.gravity else (0.0, 0.0, 0.0)
+    out = check_output("--json", args.json)
+    html = check_output("--html", args.html)
+    plan = load_plan(args.plan)
+    report = simulate(plan, options=SimOptions(gravity_palm=gravity))
+    print(report.summary())
+    opts = report.options
+    for rec in report.steps:
+        if (rec.deviation_mm > opts["tol_position"] * 1e3 or rec.deviation_deg > opts["tol_rotation"]
+                or len(rec.fingers_touching) < opts["min_fingers"]):
+            print(f"  first departure: step {rec.step} ({rec.kind}{' ' + rec.finger if rec.finger else ''}) "
+                  f"at t = {rec.time:.2f} s: {rec.deviation_mm:.2f} mm / {rec.deviation_deg:.2f} deg, "
+                  f"touching: {', '.join(rec.fingers_touching) or 'none'}")
+            break
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(report.to_dict(), indent=1))
+        print(f"wrote {out}")
+    if html is not None:
+        from regrasp_casadi.sim_replay import write_sim_html
+
+        print(f"wrote {write_sim_html(report, plan, html)} (the simulated motion; the planned object pose "
+              "as a green ghost)")
+    return EXIT_OK if report.held else EXIT_FAILED
+
+
+def add_simulate_parser(add, *, finite: Callable[[str], float], load_plan: Callable) -> None:
+    """The `simulate` subcommand (``add(name, help)`` makes a subparser); ``finite`` the argparse type
+    of a finite number, ``load_plan(path) -> Plan`` the CLI's plan reader."""
+    sp = add("simulate", "execute a plan in physics (MuJoCo) and report whether the object is held")
+    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
+    sp.add_argument("--gravity", type=finite, nargs=3, metavar=("X", "Y", "Z"),
+                    help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81)")
+    sp.add_argument("--html", metavar="SIM.html", help="write a self-contained replay of the simulated "
+                    "motion, the planned object pose as a ghost")
+    sp.add_argument("--json", metavar="REPORT.json", help="write the simulation report as JSON")
+    sp.set_defaults(func=functools.partial(cmd_simulate, load_plan=load_plan))
