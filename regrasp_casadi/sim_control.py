@@ -5,9 +5,11 @@
 
 Two layers:
 
-* `plan_motion` — the plan's motion: between two steps the joints are linearly interpolated and the object
-  pose follows the geodesic; a step lasts max(`min_step_duration`, largest joint change /
-  `joint_velocity`). It is the stand-in for the trajectory issue's ``Plan.sample(dt)``.
+* `plan_motion` — the plan's motion as executed: each step follows its path (`PlanStep.path`, the
+  trajectory module's lift-off / transit / touch-down and reposing knots, at their time stamps); a step
+  without a path moves its joints linearly and its object pose along the geodesic, in max(
+  `min_step_duration`, largest joint change / `joint_velocity`). A gait's motion fills the middle
+  1 − 2 `unload_fraction` of its step (`step_durations`).
 * `joint_commands` — adds what makes position servos hold the object:
   **grip**: every fingertip that touches the object presses on it. With ``grip="balanced"`` (default) the
   contact forces f_k (object frame) are the smallest ones (normal ≥ `grip_force`, inside the friction
@@ -17,9 +19,10 @@ Two layers:
   commanded (J Jᵀ / kp) f ≈ 1–3 mm into the surface). With ``grip="squeeze"`` each touching tip is commanded
   `squeeze_depth` into the surface along the contact normal (tip Jacobian solved by damped least squares).
   **gait**: the moving finger first hands its load over to the others (the first `unload_fraction` of
-  the step), then moves (its joints along a smoothstep of the plan's interpolation, its tip raised
-  `lift_height` above the surface in mid-move, a sine profile along the contact normal), then takes its
-  load again (the last `unload_fraction`). The other fingers hold the planned object pose.
+  the step), then moves (along its path; without a path its joints along a smoothstep of the linear
+  interpolation, its tip raised `lift_height` above the surface in mid-move, a sine profile along the
+  contact normal), then takes its load again (the last `unload_fraction`). The other fingers hold the
+  planned object pose.
 
 Contact normal of a finger at a step = unit vector from its contact point to its tip-sphere centre
 (outward); a finger touches when that distance is within 1 mm of the tip radius.
@@ -34,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linprog
 
+from regrasp_casadi.motion import interpolate_knots
 from regrasp_casadi.mujoco_model import SimOptions
 from regrasp_casadi.transforms import interpolate_pose
 
@@ -54,17 +58,33 @@ _TORQUE_LENGTH = 0.05   # m: torques are divided by it in the LP (comparable wit
 
 
 # ------------------------------------------------------------------------------------------ plan motion
-def step_durations(plan: Plan, joint_velocity: float = 1.0, min_step_duration: float = 0.2) -> NDArray:
-    """(s,) duration of each step's motion, s: 0 for step 0, else max(min_step_duration,
-    max_j |q_i,j − q_i−1,j| / joint_velocity)."""
-    Q = np.array([s.q for s in plan.steps], dtype=float)
-    dq = np.abs(np.diff(Q, axis=0)).max(axis=1) if len(Q) > 1 else np.zeros(0)
-    return np.concatenate([[0.0], np.maximum(min_step_duration, dq / joint_velocity)])
+def _motion_time(plan: Plan, i: int, joint_velocity: float) -> float:
+    """Duration of step i's own motion, s: its path's (`StepPath.duration`), else the largest joint
+    change / `joint_velocity`."""
+    step = plan.steps[i]
+    if getattr(step, "path", None) is not None:
+        return float(step.path.duration)
+    dq = np.abs(np.asarray(step.q, dtype=float) - np.asarray(plan.steps[i - 1].q, dtype=float))
+    return float(dq.max(initial=0.0)) / joint_velocity
 
 
-def step_end_times(plan: Plan, joint_velocity: float = 1.0, min_step_duration: float = 0.2) -> NDArray:
-    """(s,) time at which each step's motion ends, s (step 0 at 0)."""
-    return np.cumsum(step_durations(plan, joint_velocity, min_step_duration))
+def step_durations(plan: Plan, joint_velocity: float = 1.0, min_step_duration: float = 0.2,
+                   unload_fraction: float = 0.0) -> NDArray:
+    """(s,) duration of each step in the execution, s: 0 for step 0, else max(min_step_duration, D / (1 −
+    2 `unload_fraction`) for a gait (its load is handed over before and after the motion), D otherwise),
+    with D the step's own motion time: its path's duration, or max_j |q_i,j − q_i−1,j| / joint_velocity
+    for a step without a path."""
+    out = [0.0]
+    for i in range(1, len(plan.steps)):
+        share = 1.0 - 2.0 * unload_fraction if plan.steps[i].kind == "gait" else 1.0
+        out.append(max(min_step_duration, _motion_time(plan, i, joint_velocity) / share))
+    return np.asarray(out)
+
+
+def step_end_times(plan: Plan, joint_velocity: float = 1.0, min_step_duration: float = 0.2,
+                   unload_fraction: float = 0.0) -> NDArray:
+    """(s,) time at which each step's motion ends, s (step 0 at 0), `step_durations` summed."""
+    return np.cumsum(step_durations(plan, joint_velocity, min_step_duration, unload_fraction))
 
 
 def _segments(t_end: NDArray, t: NDArray) -> tuple[NDArray, NDArray]:
@@ -76,25 +96,48 @@ def _segments(t_end: NDArray, t: NDArray) -> tuple[NDArray, NDArray]:
     return i, np.clip((t - t_end[i - 1]) / span, 0.0, 1.0)
 
 
-def plan_motion(plan: Plan, dt: float, joint_velocity: float = 1.0, min_step_duration: float = 0.2):
-    """The plan's motion sampled every ``dt`` s (stand-in for ``Plan.sample(dt)``).
+def step_motion(plan: Plan, i: int, u: NDArray) -> tuple[NDArray, NDArray]:
+    """The motion of step i ≥ 1 at fractions u (k,) ∈ [0, 1] of it: along its path at time u · duration
+    (`motion.interpolate_knots`), else joints linear and the object on the geodesic from step i − 1.
 
-    Between two steps the joints are linearly interpolated and the object pose follows the geodesic
-    (`transforms.interpolate_pose`); step i ends at ``step_end_times(plan, ...)[i]``.
+    Returns:
+        q (k, n) rad; T_palm_object (k, 4, 4), palm frame.
+    """
+    u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
+    step, prev = plan.steps[i], plan.steps[i - 1]
+    path = getattr(step, "path", None)
+    if path is not None:
+        return interpolate_knots(path.t, path.q, path.T_palm_object, u * path.duration)
+    q0, q1 = np.asarray(prev.q, dtype=float), np.asarray(step.q, dtype=float)
+    T = np.stack([interpolate_pose(prev.T_palm_object, step.T_palm_object, float(uk)) for uk in u])
+    return q0 + u[:, None] * (q1 - q0), T
+
+
+def plan_motion(plan: Plan, dt: float, joint_velocity: float = 1.0, min_step_duration: float = 0.2,
+                unload_fraction: float = 0.0):
+    """The plan's motion sampled every ``dt`` s, as executed (`step_end_times` gives its timing).
+
+    Step i ends at ``step_end_times(plan, ...)[i]``; in between, `step_motion` (the step's path, else
+    joints linear and the object on the geodesic) runs at constant speed, over the whole step, or for a
+    gait over its middle 1 − 2 `unload_fraction` (the joints stay before and after: the load hand-over).
 
     Returns:
         t (k,) s, from 0 to the end of the last step (included); q (k, n) rad; T_palm_object (k, 4, 4).
     """
-    t_end = step_end_times(plan, joint_velocity, min_step_duration)
+    t_end = step_end_times(plan, joint_velocity, min_step_duration, unload_fraction)
     t = np.arange(0.0, t_end[-1], dt)
     if t.size == 0 or t[-1] < t_end[-1] - 1e-12:
         t = np.append(t, t_end[-1])
-    i, s = _segments(t_end, t)
-    Q = np.array([st.q for st in plan.steps], dtype=float)
-    i0 = np.maximum(i - 1, 0)
-    q = Q[i0] + s[:, None] * (Q[i] - Q[i0])
-    T = np.stack([interpolate_pose(plan.steps[a].T_palm_object, plan.steps[b].T_palm_object, sk)
-                  for a, b, sk in zip(i0, i, s, strict=True)])
+    seg, s = _segments(t_end, t)
+    q = np.empty((len(t), len(plan.steps[0].q)))
+    T = np.empty((len(t), 4, 4))
+    q[seg == 0], T[seg == 0] = np.asarray(plan.steps[0].q), np.asarray(plan.steps[0].T_palm_object)
+    for i in np.unique(seg[seg > 0]):
+        rows = seg == i
+        u = s[rows]
+        if plan.steps[i].kind == "gait" and unload_fraction > 0:
+            u = (u - unload_fraction) / (1.0 - 2.0 * unload_fraction)
+        q[rows], T[rows] = step_motion(plan, int(i), u)
     return t, q, T
 
 
@@ -283,7 +326,8 @@ def _dls(J: NDArray, dp: NDArray) -> NDArray:
 
 
 def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com: NDArray):
-    """Joint targets along the plan (every `CONTROL_DT`), grip and gait handling included.
+    """Joint targets along the plan (every `CONTROL_DT`), grip and gait handling included: the plan's
+    motion (`plan_motion`: each step's path when it has one) plus the grip offsets.
 
     Args:
         plan, hand: the plan and its Hand; opts: `SimOptions` (grip, grip_force, squeeze_depth,
@@ -294,15 +338,20 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
         t (k,) s; q_cmd (k, n) rad; T_palm_object (k, 4, 4) planned object pose; q_grip0 (n,) the
         targets that grip at step 0 (the settle's end); residual (s,) grip LP residual per step, N.
     """
-    t, q_lin, T = plan_motion(plan, CONTROL_DT, opts.joint_velocity, opts.min_step_duration)
-    seg_idx, phase = _segments(step_end_times(plan, opts.joint_velocity, opts.min_step_duration), t)
+    timing = (opts.joint_velocity, opts.min_step_duration, opts.unload_fraction)
+    t, q_lin, T = plan_motion(plan, CONTROL_DT, *timing)
+    seg_idx, phase = _segments(step_end_times(plan, *timing), t)
     segments, contacts, residual = _plan_segments(plan, hand, opts, mass, p_object_com)
     Q = np.array([st.q for st in plan.steps], dtype=float)
     q_cmd = np.empty_like(q_lin)
     for k in range(len(t)):
         i, s = int(seg_idx[k]), float(phase[k])
         F, w, u, lift = _phase_weights(segments[i], s, opts)
-        q_cmd[k] = q_lin[k] if segments[i].gait is None else Q[i - 1] + u * (Q[i] - Q[i - 1])
+        if segments[i].gait is None or plan.steps[i].path is not None:
+            q_cmd[k] = q_lin[k]  # a gait's path lifts the finger itself
+            lift = None
+        else:  # a gait without a path: joints along a smoothstep, the tip lifted along the normal
+            q_cmd[k] = Q[i - 1] + u * (Q[i] - Q[i - 1])
         n_object = (1 - s) * contacts[max(i - 1, 0)].n_object + s * contacts[i].n_object
         q_cmd[k] += _grip_offset(hand, plan.fingers, opts, q_cmd[k], T[k][:3, :3], n_object,
                                  _Grip(F, w, segments[i].gait, lift))

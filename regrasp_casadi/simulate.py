@@ -10,10 +10,12 @@ The model (`regrasp_casadi.mujoco_model`) is built from the project's own hand a
    servos press and the fingers grip (`SimOptions.grip`: "balanced" contact forces that cancel gravity's
    wrench, or a uniform `squeeze_depth` of 2 mm along the contact normal; see `sim_control`). Grip and
    gravity ramp in over the first 60 % of the settle.
-2. **Track** the plan's motion (`plan_motion`: joints linearly interpolated, each step lasting
-   max(`min_step_duration`, largest joint change / `joint_velocity`)), the grip kept on every holding
-   finger. The finger moved by a gait step hands its load over, is lifted (its tip `lift_height` above the
-   surface in mid-move) and lands again, while the others hold the planned object pose.
+2. **Track** the plan's motion (`sim_control.plan_motion`: each step's path, `PlanStep.path`, at its time
+   stamps; a step without a path: joints linearly interpolated in max(`min_step_duration`, largest
+   joint change / `joint_velocity`)), the grip kept on every holding finger. The finger moved by a gait
+   step hands its load over, follows its path (lift-off, transit, touch-down; without a path its tip is
+   raised `lift_height` above the surface in mid-move) and lands again, while the others hold the
+   planned object pose.
 3. **Hold** the last step for `hold_time`.
 
 Deviation = distance (mm) between the simulated and planned positions of the object's centre of mass,
@@ -21,8 +23,6 @@ and the angle (degrees) between the simulated and planned orientations, both in 
 end of every step. The object is **dropped** when a deviation exceeds `drop_distance` (2 cm) at any time,
 or fewer than `min_fingers` (2) fingers touch it at a step end; the plan is **followed** ("held") when it
 is not dropped and every step-end deviation is within `tol_position` / `tol_rotation` (5 mm / 5°).
-
-`plan_motion(plan, dt)` is the stand-in for the trajectory issue's `Plan.sample(dt)`.
 """
 
 from __future__ import annotations
@@ -233,7 +233,7 @@ def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     # velocity feed-forward: the servo force kp (ctrl − q) − kv q̇ − damping q̇ then has no lag on a ramp
     Q = Q + (opts.kv + opts.joint_damping) / opts.kp * np.gradient(Q, dt, axis=0)
     T_ref = np.concatenate([np.repeat(T[:1], n_settle, 0), T[idx], np.repeat(T[-1:], n_hold, 0)])
-    t_end = step_end_times(plan, opts.joint_velocity, opts.min_step_duration)
+    t_end = step_end_times(plan, opts.joint_velocity, opts.min_step_duration, opts.unload_fraction)
     ends = n_settle + np.rint(t_end / dt).astype(int)
     return Q, T_ref, ends, n_settle, residual
 
