@@ -1,69 +1,41 @@
-"""Execute the shipped problems' plans in MuJoCo: held / deviating / dropped, deviations, wall time.
+"""Execute plans in MuJoCo (`regrasp_casadi.simulate`): held / deviating / dropped, deviations, wall time.
 
-    python benchmarks/simulate.py                       # 4 problems × 2 methods × 4 gravity conditions
-    python benchmarks/simulate.py --grip squeeze --out benchmarks/results/simulate_squeeze.json
-    python benchmarks/simulate.py --gait-order stability
+    python benchmarks/simulate.py                                  # shipped problems, stability "none"
+    python benchmarks/simulate.py --problems paper --pairs 1 --stability none force_closure \\
+        --problem-dir ../main/benchmarks/problems --out benchmarks/results/simulate.json --plot
+    python benchmarks/simulate.py --per-step                       # every step alone, by step kind
 
-Gravity conditions (palm frame, m/s²; the Allegro palm faces +x, its fingers point along +z):
-off (0, 0, 0), fingers up (0, 0, −9.81), palm up (−9.81, 0, 0), palm down (+9.81, 0, 0).
-For each plan it also prints the gaits whose holding fingers lack force closure ("open":
-`stability.holding_quality` ≤ 1e-3 with μ = 0.5) and, for a drop, the step being executed and whether
-it is an open gait. Writes benchmarks/results/simulate.json (records + machine). Measures; asserts nothing.
+Plans: `plan_regrasp` with each method (svd, sd) and each `PlannerOptions.stability` asked for ("none":
+the paper's planner; "force_closure": the certified planner of issue 14, whose every gait keeps a holding
+set in force closure); each is judged by `verify` (its own tolerances). Each plan is executed in four
+conditions (gravity in the palm frame, m/s²; the Allegro palm faces +x, its fingers point along +z):
+off (0, 0, 0), fingers up (0, 0, −9.81), palm up (−9.81, 0, 0), palm down (+9.81, 0, 0). Object mass:
+the published mass of a YCB object (`certificates.YCB_MASSES`), else the mesh volume × 500 kg/m³.
+A case is *held* when `simulate` says "held": never more than 2 cm from the plan, at least two fingers
+touching at every step end, and every step-end deviation within 5 mm / 5°.
 
-Run of commit a777434 + this script (2026-12-01, AMD EPYC, 2 shared cores, 1-minute load 7.3, Python
-3.11.7, MuJoCo 4.0.0, CasADi 3.8.2; default SimOptions: balanced grip ≥ 1 N, μ = 0.5, condim 3, kp 3
-N·m/rad, 0.7 N·m torque limit; plans with the planner's default options):
+For each plan it also counts the gaits whose three holding fingers are not in force closure ("open":
+`stability.holding_quality` ≤ 1e-3 with μ = 0.5) and, for a drop, the step being executed.
 
-| problem | method | open gaits | condition | status | max mm | max deg | final mm | final deg | drop step | wall s |
-|---|---|---|---|---|---|---|---|---|---|---|
-| bottle_regrasp | svd | 12 / 22 | off | dropped | at 1.25 s | | | | 3 gait ring, open | 2.3 |
-| bottle_regrasp | svd | 12 / 22 | fingers_up | dropped | at 0.79 s | | | | 2 gait middle, closed | 1.8 |
-| bottle_regrasp | svd | 12 / 22 | palm_up | dropped | at 0.59 s | | | | 1 gait index, open | 1.7 |
-| bottle_regrasp | svd | 12 / 22 | palm_down | dropped | at 0.57 s | | | | 1 gait index, open | 1.4 |
-| bottle_regrasp | sd | 12 / 22 | off | dropped | at 1.25 s | | | | 3 gait ring, open | 0.9 |
-| bottle_regrasp | sd | 12 / 22 | fingers_up | dropped | at 0.79 s | | | | 2 gait middle, closed | 1.1 |
-| bottle_regrasp | sd | 12 / 22 | palm_up | dropped | at 0.59 s | | | | 1 gait index, open | 1.3 |
-| bottle_regrasp | sd | 12 / 22 | palm_down | dropped | at 0.57 s | | | | 1 gait index, open | 1.1 |
-| box_rotate | svd | 7 / 26 | off | deviating | 17.2 | 37.5 | 14.9 | 37.2 |  | 1.8 |
-| box_rotate | svd | 7 / 26 | fingers_up | dropped | at 3.41 s | | | | 9 gait thumb, open | 1.7 |
-| box_rotate | svd | 7 / 26 | palm_up | dropped | at 1.69 s | | | | 4 gait thumb, open | 1.9 |
-| box_rotate | svd | 7 / 26 | palm_down | dropped | at 1.58 s | | | | 4 gait thumb, open | 1.6 |
-| box_rotate | sd | 4 / 18 | off | deviating | 14.5 | 16.1 | 14.5 | 14.0 |  | 1.7 |
-| box_rotate | sd | 4 / 18 | fingers_up | dropped | at 2.92 s | | | | 6 gait index, closed | 1.5 |
-| box_rotate | sd | 4 / 18 | palm_up | dropped | at 1.69 s | | | | 4 gait thumb, open | 1.7 |
-| box_rotate | sd | 4 / 18 | palm_down | dropped | at 1.58 s | | | | 4 gait thumb, open | 1.2 |
-| box_shift | svd | 3 / 18 | off | deviating | 10.1 | 10.1 | 10.1 | 6.7 |  | 1.7 |
-| box_shift | svd | 3 / 18 | fingers_up | dropped | at 2.21 s | | | | 6 gait thumb, open | 1.6 |
-| box_shift | svd | 3 / 18 | palm_up | deviating | 8.5 | 14.5 | 3.7 | 3.1 |  | 2.4 |
-| box_shift | svd | 3 / 18 | palm_down | dropped | at 0.58 s | | | | 1 gait thumb, open | 1.3 |
-| box_shift | sd | 5 / 18 | off | deviating | 6.7 | 10.8 | 4.4 | 10.4 |  | 1.7 |
-| box_shift | sd | 5 / 18 | fingers_up | dropped | at 4.44 s | | | | 11 gait thumb, open | 1.4 |
-| box_shift | sd | 5 / 18 | palm_up | deviating | 14.2 | 17.6 | 10.1 | 13.4 |  | 2.2 |
-| box_shift | sd | 5 / 18 | palm_down | dropped | at 0.58 s | | | | 1 gait thumb, open | 1.5 |
-| cylinder_slide | svd | 17 / 29 | off | dropped | at 8.17 s | | | | 28 gait middle, open | 2.8 |
-| cylinder_slide | svd | 17 / 29 | fingers_up | dropped | at 1.41 s | | | | 4 gait thumb, open | 2.1 |
-| cylinder_slide | svd | 17 / 29 | palm_up | dropped | at 0.71 s | | | | 1 gait index, open | 2.2 |
-| cylinder_slide | svd | 17 / 29 | palm_down | dropped | at 1.33 s | | | | 4 gait thumb, open | 2.3 |
-| cylinder_slide | sd | 10 / 16 | off | deviating | 9.5 | 23.0 | 5.5 | 13.5 |  | 1.9 |
-| cylinder_slide | sd | 10 / 16 | fingers_up | dropped | at 1.41 s | | | | 4 gait thumb, open | 1.4 |
-| cylinder_slide | sd | 10 / 16 | palm_up | dropped | at 0.71 s | | | | 1 gait index, open | 1.4 |
-| cylinder_slide | sd | 10 / 16 | palm_down | dropped | at 1.33 s | | | | 4 gait thumb, open | 1.4 |
+``--per-step`` executes every step of every plan alone, from the plan's previous step (a fresh settle
+there, then the step, then a 0.3 s hold), and reports held % per step kind: "gait_closed" (certified
+holding set), "gait_open", "repose", "final", "slide". A step's deviation is then its own, not the
+drift of the steps before it.
 
-held 0 / 32, dropped 25; final deviation of the not dropped: median 10.1 mm; wall time median 1.7 s, max 2.8 s
-
-22 of the 25 drops happen during a gait whose three holding fingers are not in force closure; with
-gravity off nothing is dropped on the box plans, but each open gait pushes the box 1.6-4.4 mm (box_shift
-svd) and the open-loop execution never corrects it. With `--grip squeeze` (2 mm, the uniform squeeze) the objects
-fall during the settle or the first gait under gravity (11 of 16 dropped over off / fingers up).
+Writes the records (per case: verdict, deviations, the deviation time series every 0.05 s) and the
+machine (benchmarks/machine.py) to ``--out``; ``--plot`` draws the deviation over time
+(``--out`` with .png). Measures; asserts nothing. Results: benchmarks/README.md ("Simulation").
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import pathlib
 import sys
 import time
+from collections import defaultdict
 
 import numpy as np
 
@@ -72,6 +44,7 @@ REPO = HERE.parent
 sys.path.insert(0, str(HERE))
 GRAVITY = {"off": (0.0, 0.0, 0.0), "fingers_up": (0.0, 0.0, -9.81), "palm_up": (-9.81, 0.0, 0.0),
            "palm_down": (9.81, 0.0, 0.0)}
+SERIES_DT = 0.05  # s, the recorded deviation series
 
 
 def open_gaits(plan, hand, obj) -> set[int]:
@@ -92,6 +65,14 @@ def open_gaits(plan, hand, obj) -> set[int]:
     return out
 
 
+def step_class(plan, i: int, open_steps: set[int]) -> str:
+    """"gait_closed" | "gait_open" | the step's kind (repose, final, slide, ...)."""
+    kind = plan.steps[i].kind
+    if kind == "gait":
+        return "gait_open" if i in open_steps else "gait_closed"
+    return kind
+
+
 def drop_step(report, plan, open_steps: set[int]) -> str:
     """"k kind finger, open|closed" for the step being executed when the object was dropped ("" if not)."""
     if not report.dropped:
@@ -103,60 +84,211 @@ def drop_step(report, plan, open_steps: set[int]) -> str:
     return what + (", open" if k in open_steps else ", closed" if step.kind == "gait" else "")
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--grip", choices=("balanced", "squeeze"), default="balanced")
-    ap.add_argument("--gait-order", default=None, help="planner gait_order (default: the planner's)")
-    ap.add_argument("--conditions", nargs="+", choices=tuple(GRAVITY), default=list(GRAVITY))
-    ap.add_argument("--out", type=pathlib.Path, default=None, help="JSON file for the records")
-    args = ap.parse_args(argv)
-    from regrasp_casadi.planner import plan_regrasp
-    from regrasp_casadi.problem import RegraspProblem
+def object_mass(path: pathlib.Path) -> float | None:
+    """The published mass of a YCB problem's object, kg (None: not a YCB object)."""
+    from regrasp_casadi.certificates import YCB_MASSES
+
+    text = path.read_text()
+    return next((m for name, m in YCB_MASSES.items() if name in text), None)
+
+
+def problem_files(which: str, pairs: int, problem_dir: pathlib.Path) -> list[pathlib.Path]:
+    """The shipped problems, or the paper pairs <object>_<k> with k < `pairs`."""
+    if which == "shipped":
+        return sorted((REPO / "problems").glob("*.yaml"))
+    return sorted(p for p in problem_dir.glob("*.yaml") if int(p.stem.rsplit("_", 1)[1]) < pairs)
+
+
+def make_plan(problem, method: str, stability: str, gait_order: str | None):
+    """(plan, verified, plan wall s) of `plan_regrasp`, with `stability` when not "none"."""
+    from regrasp_casadi.planner import PlannerOptions, plan_regrasp
+    from regrasp_casadi.verify import verify
+
+    kw = {"method": method}
+    if gait_order:
+        kw["gait_order"] = gait_order
+    if stability != "none":
+        if "stability" not in {f.name for f in dataclasses.fields(PlannerOptions)}:
+            raise SystemExit(f"--stability {stability}: this PlannerOptions has no 'stability' field "
+                             "(the certified planner of issue 14 is not in this checkout)")
+        kw["stability"] = stability
+    t0 = time.perf_counter()
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, **kw)
+    wall = time.perf_counter() - t0
+    return plan, bool(verify(plan, problem.hand, problem.obj).ok), wall
+
+
+def run_plan(plan, problem, conditions, opts_kw: dict) -> list[dict]:
+    """One record per gravity condition: the whole plan executed."""
     from regrasp_casadi.simulate import SimOptions, simulate
 
-    records = []
-    print("| problem | method | open gaits | condition | status | max mm | max deg | final mm | final deg | "
-          "drop step | wall s |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for path in sorted((REPO / "problems").glob("*.yaml")):
+    open_steps = open_gaits(plan, problem.hand, problem.obj)
+    out = []
+    for cond in conditions:
+        t0 = time.perf_counter()
+        rep = simulate(plan, problem.hand, problem.obj, SimOptions(gravity_palm=GRAVITY[cond], **opts_kw))
+        last, s = rep.steps[-1], rep.series
+        every = max(1, int(round(SERIES_DT / float(np.median(np.diff(s["t"]))))))
+        out.append(dict(
+            condition=cond, status=rep.status, max_mm=rep.max_deviation_mm, max_deg=rep.max_deviation_deg,
+            final_mm=last.deviation_mm, final_deg=last.deviation_deg, wall_s=time.perf_counter() - t0,
+            sim_s=rep.sim_time, drop_time=rep.drop_time, drop_step=drop_step(rep, plan, open_steps),
+            detail=rep.detail, object_mass=rep.object_mass,
+            open_gaits=sorted(open_steps), gaits=sum(st.kind == "gait" for st in plan.steps),
+            steps=len(plan.steps), series_t=np.round(s["t"][::every], 3).tolist(),
+            series_mm=np.round(s["deviation_mm"][::every], 3).tolist()))
+    return out
+
+
+def run_steps(plan, problem, conditions, opts_kw: dict) -> list[dict]:
+    """One record per (step ≥ 1, condition): the step executed alone from its planned predecessor."""
+    from regrasp_casadi.simulate import SimOptions, simulate
+
+    open_steps = open_gaits(plan, problem.hand, problem.obj)
+    out = []
+    for i in range(1, len(plan.steps)):
+        first = dataclasses.replace(plan.steps[i - 1], kind="initial", finger=None, path=None)
+        sub = dataclasses.replace(plan, steps=(first, plan.steps[i]))
+        for cond in conditions:
+            kw = {**opts_kw, "hold_time": 0.3}
+            rep = simulate(sub, problem.hand, problem.obj, SimOptions(gravity_palm=GRAVITY[cond], **kw))
+            out.append(dict(step=i, kind=step_class(plan, i, open_steps), finger=plan.steps[i].finger,
+                            condition=cond, status=rep.status, settle_mm=rep.steps[0].deviation_mm,
+                            mm=rep.steps[1].deviation_mm, deg=rep.steps[1].deviation_deg,
+                            grip_residual=rep.steps[1].grip_residual))
+    return out
+
+
+def _pct(n: int, d: int) -> str:
+    return f"{n} / {d} ({100.0 * n / d:.0f} %)" if d else "0 / 0"
+
+
+def _median(rs: list[dict], key: str) -> str:
+    return f"{np.median([r[key] for r in rs]):.1f}" if rs else "–"
+
+
+def summary_table(records: list[dict]) -> str:
+    """Per (stability, condition): held, within 5 mm / 5° at the end, dropped, deviations, wall time."""
+    groups = defaultdict(list)
+    for r in records:
+        groups[(r["stability"], r["condition"])].append(r)
+        if r["condition"] != "off":
+            groups[(r["stability"], "gravity (3 orientations)")].append(r)
+    lines = ["| stability | condition | cases | held | final within 5 mm / 5° | dropped | final mm median "
+             "(not dropped) | max mm median (not dropped) | wall s median / max |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for (stab, cond), rs in sorted(groups.items()):
+        kept = [r for r in rs if r["status"] != "dropped"]
+        close = sum(r["status"] != "dropped" and r["final_mm"] <= 5 and r["final_deg"] <= 5 for r in rs)
+        lines.append(f"| {stab} | {cond} | {len(rs)} | {_pct(sum(r['status'] == 'held' for r in rs), len(rs))} "
+                     f"| {_pct(close, len(rs))} | {_pct(sum(r['status'] == 'dropped' for r in rs), len(rs))} "
+                     f"| {_median(kept, 'final_mm')} | {_median(kept, 'max_mm')} | {np.median([r['wall_s'] for r in rs]):.1f} / "
+                     f"{max(r['wall_s'] for r in rs):.1f} |")
+    return "\n".join(lines)
+
+
+def step_table(records: list[dict]) -> str:
+    """Per (stability, step kind, condition): held % of the steps executed alone."""
+    groups = defaultdict(list)
+    for r in records:
+        groups[(r["stability"], r["kind"], r["condition"])].append(r)
+    lines = ["| stability | step kind | condition | steps | held | dropped | step-end mm median | settle mm "
+             "median |", "|---|---|---|---|---|---|---|---|"]
+    for (stab, kind, cond), rs in sorted(groups.items()):
+        lines.append(f"| {stab} | {kind} | {cond} | {len(rs)} | {_pct(sum(r['status'] == 'held' for r in rs), len(rs))}"
+                     f" | {_pct(sum(r['status'] == 'dropped' for r in rs), len(rs))} | "
+                     f"{np.median([r['mm'] for r in rs]):.2f} | {np.median([r['settle_mm'] for r in rs]):.2f} |")
+    return "\n".join(lines)
+
+
+def plot(records: list[dict], path: pathlib.Path) -> None:
+    """Deviation (mm, log scale) over simulated time of every case, one panel per condition, one colour
+    per stability setting; the 5 mm tolerance and the 20 mm drop distance dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    conds = [c for c in GRAVITY if any(r["condition"] == c for r in records)]
+    stabs = sorted({r["stability"] for r in records})
+    colors = dict(zip(stabs, ("#D55E00", "#0072B2", "#009E73"), strict=False))
+    fig, axes = plt.subplots(1, len(conds), figsize=(4.2 * len(conds), 3.6), sharey=True, squeeze=False)
+    for ax, cond in zip(axes[0], conds, strict=True):
+        for r in (r for r in records if r["condition"] == cond):
+            ax.plot(r["series_t"], np.maximum(r["series_mm"], 1e-2), color=colors[r["stability"]], lw=0.7,
+                    alpha=0.6)
+        for y, text in ((5.0, "5 mm"), (20.0, "drop")):
+            ax.axhline(y, color="k", ls="--", lw=0.8)
+            ax.text(0.02, y * 1.1, text, transform=ax.get_yaxis_transform(), fontsize=8)
+        ax.set_yscale("log")
+        ax.set_ylim(1e-2, 1e3)
+        ax.set_title(cond.replace("_", " "))
+        ax.set_xlabel("simulated time (s)")
+    axes[0][0].set_ylabel("object deviation from the plan (mm)")
+    for stab in stabs:
+        axes[0][-1].plot([], [], color=colors[stab], label=f'stability="{stab}"')
+    axes[0][-1].legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def _args(argv):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--problems", choices=("shipped", "paper"), default="shipped")
+    ap.add_argument("--problem-dir", type=pathlib.Path, default=REPO / "benchmarks" / "problems",
+                    help="folder of the paper problems (their YCB meshes must resolve from there)")
+    ap.add_argument("--pairs", type=int, default=5, help="paper pairs per object (the first N)")
+    ap.add_argument("--methods", nargs="+", choices=("svd", "sd"), default=["svd", "sd"])
+    ap.add_argument("--stability", nargs="+", default=["none"],
+                    help="PlannerOptions.stability settings to compare (e.g. none force_closure)")
+    ap.add_argument("--conditions", nargs="+", choices=tuple(GRAVITY), default=list(GRAVITY))
+    ap.add_argument("--grip", choices=("balanced", "squeeze"), default="balanced")
+    ap.add_argument("--gait-order", default=None, help="planner gait_order (default: the planner's)")
+    ap.add_argument("--per-step", action="store_true", help="every step alone, held % per step kind")
+    ap.add_argument("--out", type=pathlib.Path, default=None, help="JSON file for the records")
+    ap.add_argument("--plot", action="store_true", help="deviation over time, next to --out (.png)")
+    return ap.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _args(argv)
+    from regrasp_casadi.problem import RegraspProblem
+
+    records, step_records, plans = [], [], []
+    for path in problem_files(args.problems, args.pairs, args.problem_dir):
         problem = RegraspProblem.load(path)
-        for method in ("svd", "sd"):
-            kw = {"method": method}
-            if args.gait_order:
-                kw["gait_order"] = args.gait_order
-            plan = plan_regrasp(problem.grasp0, problem.grasp_goal, **kw)
-            open_steps = open_gaits(plan, problem.hand, problem.obj)
-            n_open = f"{len(open_steps)} / {sum(st.kind == 'gait' for st in plan.steps)}"
-            for cond in args.conditions:
-                t0 = time.perf_counter()
-                rep = simulate(plan, problem.hand, problem.obj,
-                               SimOptions(gravity_palm=GRAVITY[cond], grip=args.grip))
-                last = rep.steps[-1]
-                rec = dict(problem=path.stem, method=method, plan_status=plan.status, open_gaits=sorted(open_steps),
-                           condition=cond, status=rep.status, max_mm=rep.max_deviation_mm,
-                           max_deg=rep.max_deviation_deg, final_mm=last.deviation_mm,
-                           final_deg=last.deviation_deg, wall_s=time.perf_counter() - t0,
-                           sim_s=rep.sim_time, drop_time=rep.drop_time,
-                           drop_step=drop_step(rep, plan, open_steps), detail=rep.detail)
-                records.append(rec)
-                figures = (f"{rec['max_mm']:.1f} | {rec['max_deg']:.1f} | {rec['final_mm']:.1f} | "
-                           f"{rec['final_deg']:.1f} | " if not rep.dropped else
-                           f"at {rep.drop_time:.2f} s | | | | {rec['drop_step']}")
-                print(f"| {path.stem} | {method} | {n_open} | {cond} | {rep.status} | {figures} | "
-                      f"{rec['wall_s']:.1f} |", flush=True)
-    held = sum(r["status"] == "held" for r in records)
-    kept = [r["final_mm"] for r in records if r["status"] != "dropped"]
-    print(f"\nheld {held} / {len(records)}, dropped {sum(r['status'] == 'dropped' for r in records)}; "
-          f"final deviation of the not dropped: median {np.median(kept) if kept else float('nan'):.1f} mm; "
-          f"wall time median {np.median([r['wall_s'] for r in records]):.1f} s, "
-          f"max {max(r['wall_s'] for r in records):.1f} s")
+        mass = object_mass(path)
+        opts_kw = {"grip": args.grip, **({"object_mass": mass} if mass else {})}
+        for stability in args.stability:
+            for method in args.methods:
+                plan, verified, plan_s = make_plan(problem, method, stability, args.gait_order)
+                head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,
+                            verified=verified, plan_wall_s=plan_s)
+                plans.append(head | {"steps": len(plan.steps)})
+                if args.per_step:
+                    step_records += [head | r for r in run_steps(plan, problem, args.conditions, opts_kw)]
+                    print(f"{path.stem} {method} {stability}: {len(plan.steps)} steps", flush=True)
+                    continue
+                for r in run_plan(plan, problem, args.conditions, opts_kw):
+                    records.append(head | r)
+                    figures = (f"{r['max_mm']:.1f} | {r['final_mm']:.1f} | {r['final_deg']:.1f}"
+                               if r["status"] != "dropped" else f"drop at {r['drop_time']:.2f} s | "
+                               f"{r['drop_step']} |")
+                    print(f"| {path.stem} | {method} | {stability} | {plan.status}{'' if verified else ' (!v)'} "
+                          f"| {len(r['open_gaits'])} / {r['gaits']} | {r['condition']} | {r['status']} | "
+                          f"{figures} | {r['wall_s']:.1f} |", flush=True)
+    print()
+    print(step_table(step_records) if args.per_step else summary_table(records))
     if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
         from machine import machine_info
 
+        args.out.parent.mkdir(parents=True, exist_ok=True)
         info = machine_info(("mujoco", "numpy", "scipy", "casadi"))
-        args.out.write_text(json.dumps({"machine": info, "grip": args.grip, "gait_order": args.gait_order,
-                                        "records": records}, indent=1))
+        args.out.write_text(json.dumps({"machine": info, "args": {k: str(v) for k, v in vars(args).items()},
+                                        "plans": plans, "records": records, "step_records": step_records},
+                                       indent=1))
+        if args.plot and records:
+            plot(records, args.out.with_suffix(".png"))
     return 0
 
 

@@ -97,6 +97,11 @@ class SimOptions:
     """How touching fingertips press: "balanced" (forces from a linear program that cancel gravity's
     wrench, normal ≥ `grip_force`, applied as joint offsets Jᵀf/kp) or "squeeze" (each tip commanded
     `squeeze_depth` into the surface along its contact normal)."""
+    surface_correction: bool = True
+    """Command each touching tip onto the SIMULATED object's surface: the object's convex pieces may
+    over-cover (or under-cover) the mesh the planner used by a few mm where a finger touches, so the tip
+    target moves along the contact normal by the difference (`simulate.surface_distances`, measured per
+    step with MuJoCo's signed distance, interpolated between steps). False: the plan's tip positions."""
     grip_force: float = 1.0
     """Smallest normal force of a holding fingertip ("balanced" grip), N."""
     grip_friction_fraction: float = 0.8

@@ -325,18 +325,22 @@ def _dls(J: NDArray, dp: NDArray) -> NDArray:
     return J.T @ np.linalg.solve(J @ J.T + _DLS_DAMPING**2 * np.eye(3), dp)
 
 
-def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com: NDArray):
+def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com: NDArray,
+                   surface: NDArray | None = None):
     """Joint targets along the plan (every `CONTROL_DT`), grip and gait handling included: the plan's
     motion (`plan_motion`: each step's path when it has one) plus the grip offsets.
 
     Args:
         plan, hand: the plan and its Hand; opts: `SimOptions` (grip, grip_force, squeeze_depth,
             lift_height, unload_fraction, kp, gravity_palm, friction, timing fields);
-        mass: object mass, kg; p_object_com: (3,) centre of mass, object frame, m.
+        mass: object mass, kg; p_object_com: (3,) centre of mass, object frame, m;
+        surface: (s, m) per step and finger, the signed distance (m) of the planned tip from the simulated
+            object surface (`_Grip.surface`; linearly interpolated between steps); None: no correction.
 
     Returns:
         t (k,) s; q_cmd (k, n) rad; T_palm_object (k, 4, 4) planned object pose; q_grip0 (n,) the
-        targets that grip at step 0 (the settle's end); residual (s,) grip LP residual per step, N.
+        targets that grip at step 0 (the settle's end); residual (s,) grip LP residual per step, N;
+        q_start (n,) the hand at step 0 with the surface correction only (the settle's start).
     """
     timing = (opts.joint_velocity, opts.min_step_duration, opts.unload_fraction)
     t, q_lin, T = plan_motion(plan, CONTROL_DT, *timing)
@@ -353,12 +357,17 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
         else:  # a gait without a path: joints along a smoothstep, the tip lifted along the normal
             q_cmd[k] = Q[i - 1] + u * (Q[i] - Q[i - 1])
         n_object = (1 - s) * contacts[max(i - 1, 0)].n_object + s * contacts[i].n_object
+        d = None if surface is None else (1 - s) * surface[max(i - 1, 0)] + s * surface[i]
         q_cmd[k] += _grip_offset(hand, plan.fingers, opts, q_cmd[k], T[k][:3, :3], n_object,
-                                 _Grip(F, w, segments[i].gait, lift))
+                                 _Grip(F, w, segments[i].gait, lift, d))
     R0 = np.asarray(plan.steps[0].T_palm_object)[:3, :3]
+    d0 = None if surface is None else surface[0]
     q0 = Q[0] + _grip_offset(hand, plan.fingers, opts, Q[0], R0, contacts[0].n_object,
-                             _Grip(segments[0].F0, segments[0].w0.astype(float), None, None))
-    return t, q_cmd, T, q0, np.asarray(residual)
+                             _Grip(segments[0].F0, segments[0].w0.astype(float), None, None, d0))
+    zero = np.zeros_like(segments[0].F0)
+    q_start = Q[0] + _grip_offset(hand, plan.fingers, opts, Q[0], R0, contacts[0].n_object,
+                                  _Grip(zero, np.zeros(len(zero)), None, None, d0))
+    return t, q_cmd, T, q0, np.asarray(residual), q_start
 
 
 class _Grip(NamedTuple):
@@ -369,11 +378,16 @@ class _Grip(NamedTuple):
     w: NDArray
     gait: int | None
     lift: float | None
+    surface: NDArray | None = None
+    """(m,) signed distance of each tip from the SIMULATED object surface where the plan has it touch
+    (the convex pieces may over-cover the mesh by a few mm), m: the tip target moves by −d along the
+    normal (None or 0: no correction)."""
 
 
 def _grip_offset(hand, fingers, opts: SimOptions, q: NDArray, R_palm_object: NDArray, n_object: NDArray,
                  grip: _Grip) -> NDArray:
-    """(n,) joint offset at one instant: grip of every finger plus the gait finger's lift; `n_object`
+    """(n,) joint offset at one instant: surface correction and grip of every finger plus the gait finger's
+    lift; `n_object`
     (m, 3) the contact normals (object frame, not necessarily unit), rows in `fingers` order."""
     dq = np.zeros(len(q))
     R = R_palm_object
@@ -381,6 +395,9 @@ def _grip_offset(hand, fingers, opts: SimOptions, q: NDArray, R_palm_object: NDA
         n_obj = n_object[m]
         n_palm = R @ (n_obj / max(np.linalg.norm(n_obj), 1e-12))
         J = None
+        if grip.surface is not None and grip.surface[m] != 0.0:
+            J = hand.tip_jacobian(q, f)
+            dq += _dls(J, -grip.surface[m] * n_palm)
         if opts.grip == "balanced" and np.any(grip.F[m]):
             J = hand.tip_jacobian(q, f)
             dq += J.T @ (R @ grip.F[m]) / opts.kp

@@ -202,9 +202,9 @@ def _record(probe: _Probe, model, data, T_plan, *, step: int, kind: str, finger,
                       float(residual))
 
 
-def _initial_state(sim: SimModel, data: mujoco.MjData, q0: NDArray, T_palm_object: NDArray,
-                   opts: SimOptions) -> None:
-    """Hand at q0 (at rest), object at its planned pose in the world frame."""
+def _place(sim: SimModel, data: mujoco.MjData, q0: NDArray, T_palm_object: NDArray,
+           opts: SimOptions) -> None:
+    """Hand joints at q0, object at T_palm_object (palm frame) in the world frame (qpos only)."""
     data.qpos[sim.qpos_hand] = q0
     R_world_object = opts.R_world_palm @ T_palm_object[:3, :3]
     p_world_object = opts.R_world_palm @ T_palm_object[:3, 3]
@@ -212,15 +212,48 @@ def _initial_state(sim: SimModel, data: mujoco.MjData, q0: NDArray, T_palm_objec
     mujoco.mju_mat2Quat(quat, R_world_object.reshape(9))
     data.qpos[sim.qpos_object:sim.qpos_object + 3] = p_world_object
     data.qpos[sim.qpos_object + 3:sim.qpos_object + 7] = quat
+
+
+def _initial_state(sim: SimModel, data: mujoco.MjData, q0: NDArray, T_palm_object: NDArray,
+                   opts: SimOptions) -> None:
+    """Hand at q0 (at rest), object at its planned pose in the world frame."""
+    _place(sim, data, q0, T_palm_object, opts)
     data.qvel[:] = 0.0
     data.ctrl[sim.actuator] = q0
     mujoco.mj_forward(sim.model, data)
 
 
+def surface_distances(sim: SimModel, plan: Plan, hand, opts: SimOptions) -> NDArray:
+    """(s, m) per step and finger (``plan.fingers`` order): how far the tip sphere is from the SIMULATED
+    object (its convex pieces, MuJoCo's signed distance, m; < 0 inside) minus how far the plan has it
+    from the mesh, at the step's planned q and object pose; 0 for a finger the plan has not touching."""
+    from regrasp_casadi.sim_control import step_contacts
+
+    model, data = sim.model, mujoco.MjData(sim.model)
+    rows = [list(hand.fingers).index(f) for f in plan.fingers]
+    out = np.zeros((len(plan.steps), len(plan.fingers)))
+    for i, (step, contacts) in enumerate(zip(plan.steps, step_contacts(plan, hand), strict=True)):
+        T = np.asarray(step.T_palm_object, dtype=float)
+        _place(sim, data, step.q, T, opts)
+        mujoco.mj_kinematics(model, data)
+        tips = hand.tip_positions(step.q)[rows]
+        for m, f in enumerate(plan.fingers):
+            if not contacts.touching[m]:
+                continue
+            p_palm_contact = T[:3, :3] @ contacts.p_object[m] + T[:3, 3]
+            planned = np.linalg.norm(tips[m] - p_palm_contact) - hand.tip_radius
+            d = min(mujoco.mj_geomDistance(model, data, sim.tip_geom[f], g, 0.02, None)
+                    for g in sim.object_geoms)
+            out[i, m] = d - planned
+    return out
+
+
 def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     """Targets at every simulation step: (q_cmd (N, n), planned T (N, 4, 4), step-end sim indices,
-    settle length, grip residual per step)."""
-    t, q_cmd, T, q_grip0, residual = joint_commands(plan, hand, opts, sim.object_mass, sim.p_object_com)
+    settle length, grip residual per step, the hand's start q (n,))."""
+    surface = surface_distances(sim, plan, hand, opts) if opts.surface_correction else None
+    t, q_cmd, T, q_grip0, residual, q0 = joint_commands(plan, hand, opts, sim.object_mass, sim.p_object_com,
+                                                        surface)
     dt = opts.timestep
     n_settle = int(round(opts.settle_time / dt))
     n_hold = int(round(opts.hold_time / dt))
@@ -228,22 +261,21 @@ def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     Q = np.column_stack([np.interp(t_sim, t, q_cmd[:, j]) for j in range(q_cmd.shape[1])])
     idx = np.clip(np.searchsorted(t, t_sim), 0, len(t) - 1)
     ramp = np.clip(np.arange(n_settle) / max(0.6 * n_settle, 1), 0.0, 1.0)[:, None]
-    q0 = np.asarray(plan.steps[0].q, dtype=float)
     Q = np.vstack([q0 + ramp * (q_grip0 - q0), Q, np.repeat(Q[-1:], n_hold, axis=0)])
     # velocity feed-forward: the servo force kp (ctrl − q) − kv q̇ − damping q̇ then has no lag on a ramp
     Q = Q + (opts.kv + opts.joint_damping) / opts.kp * np.gradient(Q, dt, axis=0)
     T_ref = np.concatenate([np.repeat(T[:1], n_settle, 0), T[idx], np.repeat(T[-1:], n_hold, 0)])
     t_end = step_end_times(plan, opts.joint_velocity, opts.min_step_duration, opts.unload_fraction)
     ends = n_settle + np.rint(t_end / dt).astype(int)
-    return Q, T_ref, ends, n_settle, residual
+    return Q, T_ref, ends, n_settle, residual, q0
 
 
 def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     """Step the simulation along the timeline; returns (step records, series, drop time or None)."""
     model, data = sim.model, mujoco.MjData(sim.model)
-    Q, T_ref, ends, n_settle, residual = _timeline(sim, plan, hand, opts)
+    Q, T_ref, ends, n_settle, residual, q_start = _timeline(sim, plan, hand, opts)
     gravity = np.array(model.opt.gravity)
-    _initial_state(sim, data, plan.steps[0].q, plan.steps[0].T_palm_object, opts)
+    _initial_state(sim, data, q_start, plan.steps[0].T_palm_object, opts)
     probe = _Probe(sim, hand, opts)
     every = max(int(round(opts.record_dt / opts.timestep)), 1)
     step_at = {int(k): i for i, k in enumerate(ends)}
