@@ -2,7 +2,8 @@
 
 No XML file is written or read: the hand's kinematic tree comes from its URDF (read with yourdfpy from
 ``hand.urdf_path``), its collision geometry from ``hand.spheres`` (the sphere cover and the fingertip
-contact spheres, exactly the planner's collision model), and the object from its convex pieces
+contact spheres, exactly the planner's collision model) or, when the URDF has ``<collision>`` elements,
+from those and the tip spheres (`SimOptions.hand_collision`), and the object from its convex pieces
 (``obj.pieces[i].vertices``, object frame, m). Every physical constant is a field of `SimOptions`.
 
 World frame: the palm is fixed in the world at the origin, ``R_world_palm = quat(options.palm_wxyz)``;
@@ -16,6 +17,7 @@ link; the object body is ``"object"`` (a free joint ``"object_free"``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import mujoco
@@ -37,6 +39,7 @@ _INTEGRATORS = {
 }
 _CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL}
 _HAND_GROUP, _OBJECT_GROUP = 1, 2  # contype / conaffinity bits
+_TOKEN_MASS = 1e-3  # kg, of a link without collision geometry (MuJoCo needs a mass; gravity-compensated)
 
 
 @dataclass(frozen=True)
@@ -83,6 +86,13 @@ class SimOptions:
     """Rotor inertia added to every joint, kg·m²."""
     hand_density: float = 1000.0
     """Density of the hand's collision spheres, kg/m³ (the links' mass and inertia come from them)."""
+    hand_collision: str = "spheres"
+    """Collision geometry of the hand's links besides the fingertip contact spheres (always the planner's
+    tip spheres): "spheres" (default) the sphere cover (`hand.spheres`, the planner's collision model);
+    "urdf" the URDF's own ``<collision>`` elements (box, cylinder, sphere, mesh: the convex hull of the
+    mesh file), those of the links carrying a tip sphere left out (ModelError when there are none);
+    "auto": "urdf" when some link of the URDF has a collision element, else "spheres". (The shipped
+    Allegro URDF's collision elements are its sphere cover; the vendor URDF's are boxes and spheres.)"""
     hand_self_collision: bool = False
     """False: hand bodies never collide with each other (the planner does not model it, and the
     conservative sphere covers of neighbouring fingers overlap by up to 30 mm in planned grasps). True:
@@ -144,6 +154,9 @@ class SimOptions:
             raise ValueError(f"SimOptions.grip: {self.grip!r} not in ('balanced', 'squeeze')")
         if not 0.0 <= self.unload_fraction < 0.5:
             raise ValueError(f"SimOptions.unload_fraction must be in [0, 0.5), got {self.unload_fraction}")
+        if self.hand_collision not in ("auto", "spheres", "urdf"):
+            raise ValueError(f"SimOptions.hand_collision: {self.hand_collision!r} not in ('auto', 'spheres', "
+                             "'urdf')")
         if self.condim not in (1, 3, 4, 6):
             raise ValueError(f"SimOptions.condim: {self.condim} not in (1, 3, 4, 6)")
         for name in ("timestep", "kp", "force_limit", "object_density", "joint_velocity", "record_dt"):
@@ -216,7 +229,8 @@ def _quat_wxyz(R: NDArray) -> NDArray[np.float64]:
 
 
 def _read_urdf(hand):
-    """(child link -> its parent joint, link -> its child joints) of ``hand.urdf_path`` (yourdfpy)."""
+    """(child link -> its parent joint, link -> its child joints, link -> its collision elements) of
+    ``hand.urdf_path`` (yourdfpy)."""
     import yourdfpy
 
     try:
@@ -228,7 +242,8 @@ def _read_urdf(hand):
     children: dict[str, list] = {ln.name: [] for ln in robot.robot.links}
     for j in robot.robot.joints:
         children[j.parent].append(j)
-    return parent_joint, children
+    collisions = {ln.name: list(ln.collisions) for ln in robot.robot.links if ln.collisions}
+    return parent_joint, children, collisions
 
 
 def _add_joint(body, j, opts: SimOptions) -> None:
@@ -259,7 +274,10 @@ def _contact(opts: SimOptions) -> dict[str, Any]:
 
 def _add_hand(spec: mujoco.MjSpec, hand, opts: SimOptions) -> dict[str, Any]:
     """Bodies, joints and sphere geoms of the hand under the world body; returns link -> MjsBody."""
-    parent_joint, children = _read_urdf(hand)
+    parent_joint, children, collisions = _read_urdf(hand)
+    use_urdf = opts.hand_collision == "urdf" or (opts.hand_collision == "auto" and bool(collisions))
+    if opts.hand_collision == "urdf" and not collisions:
+        raise ModelError(f"{hand.urdf_path}: SimOptions.hand_collision='urdf' but no link has a <collision>")
     palm = spec.worldbody.add_body(name=hand.root_link, quat=np.asarray(opts.palm_wxyz, dtype=float))
     bodies = {hand.root_link: palm}
     stack = [hand.root_link]
@@ -278,6 +296,8 @@ def _add_hand(spec: mujoco.MjSpec, hand, opts: SimOptions) -> dict[str, Any]:
             bodies[j.child] = body
             stack.append(j.child)
     for s in hand.spheres:
+        if use_urdf and not s.is_tip:
+            continue
         bodies[s.link].add_geom(
             name=("tip:" if s.is_tip else "sphere:") + (s.label or s.link),
             type=mujoco.mjtGeom.mjGEOM_SPHERE,
@@ -289,8 +309,50 @@ def _add_hand(spec: mujoco.MjSpec, hand, opts: SimOptions) -> dict[str, Any]:
             rgba=[0.2, 0.4, 0.9, 1.0] if s.is_tip else [0.3, 0.3, 0.35, 0.5],
             **_contact(opts),
         )
+    if use_urdf:
+        _add_urdf_collisions(spec, hand, bodies, collisions, opts)
+    for link, body in bodies.items():
+        if link != hand.root_link and body.first_geom() is None:  # no geometry: a token mass (gravcomp)
+            body.explicitinertial = True
+            body.mass, body.inertia = _TOKEN_MASS, [_TOKEN_MASS * 1e-4] * 3
     _exclude_hand_pairs(spec, hand, parent_joint)
     return bodies
+
+
+def _add_urdf_collisions(spec: mujoco.MjSpec, hand, bodies: dict, collisions: dict, opts: SimOptions) -> None:
+    """Geoms ``"urdf:<link>#k"`` for the URDF's collision elements, except on the links with a tip sphere."""
+    tip_links, base = {s.link for s in hand.spheres if s.is_tip}, Path(hand.urdf_path).parent
+    for link, items in collisions.items():
+        if link in bodies and link not in tip_links:
+            for k, c in enumerate(items):
+                _add_urdf_geom(spec, bodies[link], f"urdf:{link}#{k}", c, base, opts)
+
+
+def _add_urdf_geom(spec: mujoco.MjSpec, body, name: str, c, base: Path, opts: SimOptions) -> None:
+    """One geom for URDF collision element ``c`` (box, cylinder, sphere or mesh, at its origin)."""
+    T = np.asarray(c.origin if c.origin is not None else np.eye(4), dtype=float)
+    g = c.geometry
+    kw: dict[str, Any] = {}
+    if g.box is not None:
+        kw = {"type": mujoco.mjtGeom.mjGEOM_BOX, "size": 0.5 * np.asarray(g.box.size, dtype=float)}
+    elif g.cylinder is not None:
+        kw = {"type": mujoco.mjtGeom.mjGEOM_CYLINDER, "size": [g.cylinder.radius, 0.5 * g.cylinder.length, 0]}
+    elif g.sphere is not None:
+        kw = {"type": mujoco.mjtGeom.mjGEOM_SPHERE, "size": [g.sphere.radius, 0, 0]}
+    elif g.mesh is not None:
+        import trimesh
+
+        mesh = trimesh.load(base / g.mesh.filename, force="mesh")
+        if g.mesh.scale is not None:
+            mesh.apply_scale(np.broadcast_to(np.asarray(g.mesh.scale, dtype=float), 3))
+        spec.add_mesh(name=name, uservert=np.asarray(mesh.vertices, dtype=float).reshape(-1).tolist())
+        kw = {"type": mujoco.mjtGeom.mjGEOM_MESH, "meshname": name}
+    else:  # pragma: no cover - yourdfpy reads only these four
+        raise ModelError(f"{name}: unsupported URDF collision geometry {g}")
+    affinity = _OBJECT_GROUP | (_HAND_GROUP if opts.hand_self_collision else 0)
+    body.add_geom(name=name, pos=T[:3, 3], quat=_quat_wxyz(T[:3, :3]), density=opts.hand_density,
+                  contype=_HAND_GROUP, conaffinity=affinity, rgba=[0.3, 0.3, 0.35, 0.5], **kw,
+                  **_contact(opts))
 
 
 def _exclude_hand_pairs(spec: mujoco.MjSpec, hand, parent_joint: dict) -> None:
@@ -387,6 +449,10 @@ def _index(model: mujoco.MjModel, spec: mujoco.MjSpec, hand, mass: float, com: N
     finger_of_link = {}
     for s in hand.spheres:
         finger_of_link.setdefault(s.link, s.finger)
+    from regrasp_casadi.link_meshes import finger_links
+
+    for link, finger in finger_links(hand).items():
+        finger_of_link.setdefault(link, finger)
     geom_finger, tip_geom, object_geoms = {}, {}, set()
     for g in range(model.ngeom):
         name = model.geom(g).name

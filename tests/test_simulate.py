@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 from sim_plans import BOX_SHIFT, GRAVITY_DOWN, lifted, make_plan
 
 from regrasp_casadi.mujoco_model import OBJECT_BODY, SimOptions, build_model
@@ -245,3 +247,63 @@ def test_cli_simulate_exit_codes_and_json(hand, box_problem, tmp_path, capsys):
     assert "simulate: dropped" in capsys.readouterr().out
     assert cli.main(["simulate", str(tmp_path / "missing.json")]) == cli.EXIT_BAD_INPUT
     assert cli.main(["simulate", str(tmp_path / "held.json"), "--gravity", "0", "nan", "0"]) == 2
+
+
+def test_urdf_collision_elements_become_geoms(box_problem, tmp_path):
+    """hand_collision="urdf" on a copy of the shipped model whose link_1.0 collides as one box and link_2.0
+    as one STL mesh: the box geom has the URDF's half sizes and sits at the link's FK pose × its origin;
+    the mesh geom's vertices span the STL's box (trimesh); the tip links keep only the tip sphere; a URDF
+    without collision elements is refused; the default keeps the sphere cover."""
+    import re
+    import shutil
+
+    import trimesh
+
+    from regrasp_casadi.errors import ModelError
+    from regrasp_casadi.hand import Hand
+
+    src = Path(box_problem.hand.urdf_path).parent
+    folder = tmp_path / src.name
+    shutil.copytree(src, folder)
+    urdf = folder / Path(box_problem.hand.urdf_path).name
+    text = urdf.read_text()
+    trimesh.creation.box(extents=(0.01, 0.02, 0.03)).export(folder / "block.stl")
+    box = ('<collision><origin xyz="0.001 0.002 0.02" rpy="0.3 0 0"/><geometry><box size="0.02 0.026 0.05"/>'
+           '</geometry></collision>')
+    mesh = '<collision><geometry><mesh filename="block.stl"/></geometry></collision>'
+    for link, repl in (("link_1.0", box), ("link_2.0", mesh)):
+        one = rf'<collision name="{re.escape(link)}#\d+">.*?</collision>'
+        text = re.sub(rf"{one}(\s*{one})*", repl, text, count=1, flags=re.S)
+    urdf.write_text(text)
+    hand = Hand(urdf)
+    sim = build_model(hand, box_problem.obj, SimOptions(hand_collision="urdf"))
+    model, data = sim.model, mujoco.MjData(sim.model)
+    q = 0.5 * (hand.q_lower + hand.q_upper)
+    data.qpos[sim.qpos_hand] = q
+    mujoco.mj_kinematics(model, data)
+    g = model.geom("urdf:link_1.0#0").id
+    assert model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX
+    np.testing.assert_allclose(model.geom_size[g], [0.01, 0.013, 0.025])
+    T_origin = np.eye(4)
+    T_origin[:3, :3] = Rotation.from_euler("xyz", [0.3, 0, 0]).as_matrix()
+    T_origin[:3, 3] = [0.001, 0.002, 0.02]
+    T = hand.fk(q)["link_1.0"] @ T_origin
+    np.testing.assert_allclose(data.geom_xpos[g], T[:3, 3], atol=1e-9)
+    np.testing.assert_allclose(data.geom_xmat[g].reshape(3, 3), T[:3, :3], atol=1e-9)
+    gm = model.geom("urdf:link_2.0#0").id
+    mesh_id = model.geom_dataid[gm]
+    v = model.mesh_vert[model.mesh_vertadr[mesh_id]:model.mesh_vertadr[mesh_id] + model.mesh_vertnum[mesh_id]]
+    v_link = v @ data.geom_xmat[gm].reshape(3, 3).T + data.geom_xpos[gm]   # world = palm frame here
+    T2 = hand.fk(q)["link_2.0"]
+    v_link = (v_link - T2[:3, 3]) @ T2[:3, :3]
+    np.testing.assert_allclose(v_link.max(axis=0) - v_link.min(axis=0), [0.01, 0.02, 0.03], atol=1e-9)
+    names = {model.geom(i).name for i in range(model.ngeom)}
+    assert not any(n.startswith("sphere:") for n in names)
+    assert not any(n.startswith("urdf:") and "_tip" in n for n in names)
+    tips = {n for n in names if n.startswith("tip:")}
+    assert tips == {f"tip:{hand.tip_links[f]}#tip" for f in hand.fingers}
+    default = build_model(hand, box_problem.obj, SimOptions())
+    assert not any(default.model.geom(i).name.startswith("urdf:") for i in range(default.model.ngeom))
+    urdf.write_text(re.sub(r"<collision.*?</collision>", "", text, flags=re.S))
+    with pytest.raises(ModelError, match="no link has a <collision>"):
+        build_model(Hand(urdf), box_problem.obj, SimOptions(hand_collision="urdf"))
