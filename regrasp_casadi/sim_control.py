@@ -57,6 +57,12 @@ _TANGENT_WEIGHT = 0.3  # cost of 1 N of tangential force against 1 N of normal f
 _TORQUE_LENGTH = 0.05   # m: torques are divided by it in the LP (comparable with forces)
 
 
+MOVING_FINGER_KINDS = ("gait", "slide")
+"""Step kinds that move one finger (`PlanStep.finger`) while the others hold: it hands its load over
+first and takes it back at the end; a "gait" lifts it, a "slide" (the certified planner's) keeps it on
+the surface with no grip force (its certificate holds the object without its friction)."""
+
+
 # ------------------------------------------------------------------------------------------ plan motion
 def _motion_time(plan: Plan, i: int, joint_velocity: float) -> float:
     """Duration of step i's own motion, s: its path's (`StepPath.duration`), else the largest joint
@@ -76,7 +82,7 @@ def step_durations(plan: Plan, joint_velocity: float = 1.0, min_step_duration: f
     for a step without a path."""
     out = [0.0]
     for i in range(1, len(plan.steps)):
-        share = 1.0 - 2.0 * unload_fraction if plan.steps[i].kind == "gait" else 1.0
+        share = 1.0 - 2.0 * unload_fraction if plan.steps[i].kind in MOVING_FINGER_KINDS else 1.0
         out.append(max(min_step_duration, _motion_time(plan, i, joint_velocity) / share))
     return np.asarray(out)
 
@@ -135,7 +141,7 @@ def plan_motion(plan: Plan, dt: float, joint_velocity: float = 1.0, min_step_dur
     for i in np.unique(seg[seg > 0]):
         rows = seg == i
         u = s[rows]
-        if plan.steps[i].kind == "gait" and unload_fraction > 0:
+        if plan.steps[i].kind in MOVING_FINGER_KINDS and unload_fraction > 0:
             u = (u - unload_fraction) / (1.0 - 2.0 * unload_fraction)
         q[rows], T[rows] = step_motion(plan, int(i), u)
     return t, q, T
@@ -293,7 +299,8 @@ def _plan_segments(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
     segments = [_Segment(ends[0][0], ends[0][0], ends[0][0], *(contacts[0].touching,) * 3, None)]
     for i in range(1, len(plan.steps)):
         step, c0, c1 = plan.steps[i], contacts[i - 1], contacts[i]
-        g = list(plan.fingers).index(step.finger) if step.kind == "gait" and step.finger else None
+        moving = step.kind in MOVING_FINGER_KINDS and step.finger
+        g = list(plan.fingers).index(step.finger) if moving else None
         w_mid = c0.touching & c1.touching
         if g is not None:
             w_mid = w_mid.copy()
@@ -351,8 +358,8 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
     for k in range(len(t)):
         i, s = int(seg_idx[k]), float(phase[k])
         F, w, u, lift = _phase_weights(segments[i], s, opts)
-        if segments[i].gait is None or plan.steps[i].path is not None:
-            q_cmd[k] = q_lin[k]  # a gait's path lifts the finger itself
+        if segments[i].gait is None or plan.steps[i].path is not None or plan.steps[i].kind == "slide":
+            q_cmd[k] = q_lin[k]  # a gait's path lifts the finger itself; a slide stays on the surface
             lift = None
         else:  # a gait without a path: joints along a smoothstep, the tip lifted along the normal
             q_cmd[k] = Q[i - 1] + u * (Q[i] - Q[i - 1])
