@@ -10,7 +10,8 @@ the paper's planner; "force_closure": the certified planner of issue 14, whose e
 set in force closure); each is judged by `verify` (its own tolerances). Each plan is executed in four
 conditions (gravity in the palm frame, m/s²; the Allegro palm faces +x, its fingers point along +z):
 off (0, 0, 0), fingers up (0, 0, −9.81), palm up (−9.81, 0, 0), palm down (+9.81, 0, 0). Object mass:
-the published mass of a YCB object (`certificates.YCB_MASSES`), else the mesh volume × 500 kg/m³.
+the problem's `object.mass`, else the published mass of a YCB object (`certificates.YCB_MASSES`), else
+the mesh volume × 500 kg/m³.
 A case is *held* when `simulate` says "held": never more than 2 cm from the plan, at least two fingers
 touching at every step end, and every step-end deviation within 5 mm / 5°.
 
@@ -107,11 +108,11 @@ def make_plan(problem, method: str, stability: str, gait_order: str | None):
     kw = {"method": method}
     if gait_order:
         kw["gait_order"] = gait_order
-    if stability != "none":
-        if "stability" not in {f.name for f in dataclasses.fields(PlannerOptions)}:
-            raise SystemExit(f"--stability {stability}: this PlannerOptions has no 'stability' field "
-                             "(the certified planner of issue 14 is not in this checkout)")
+    if "stability" in {f.name for f in dataclasses.fields(PlannerOptions)}:
         kw["stability"] = stability
+    elif stability != "none":
+        raise SystemExit(f"--stability {stability}: this PlannerOptions has no 'stability' field "
+                         "(the certified planner of issue 14 is not in this checkout)")
     t0 = time.perf_counter()
     plan = plan_regrasp(problem.grasp0, problem.grasp_goal, **kw)
     wall = time.perf_counter() - t0
@@ -257,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     records, step_records, plans = [], [], []
     for path in problem_files(args.problems, args.pairs, args.problem_dir):
         problem = RegraspProblem.load(path)
-        mass = object_mass(path)
+        mass = getattr(problem, "object_mass", None) or object_mass(path)
         opts_kw = {"grip": args.grip, **({"object_mass": mass} if mass else {})}
         for stability in args.stability:
             for method in args.methods:

@@ -27,6 +27,7 @@ is not dropped and every step-end deviation is within `tol_position` / `tol_rota
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -337,13 +338,18 @@ def simulate(plan: Plan, hand=None, obj=None, options: SimOptions | None = None)
     Args:
         plan: a Plan (its steps' q, T_palm_object, contacts_object, kind, finger are used).
         hand, obj: the plan's Hand and ObjectModel (default: rebuilt from the plan's specs).
-        options: physics and execution constants (default `SimOptions()`: gravity off).
+        options: physics and execution constants (default `SimOptions()`: gravity off). Without an
+            `object_mass`, the plan's ``options["object_mass"]`` (the problem's `object.mass`) when it has
+            one, else the mesh volume × `object_density`.
 
     Returns:
         SimReport: per-step deviation (mm, degrees) and contact normal forces, verdict, timings.
     """
     t0 = time.perf_counter()
     opts = options or SimOptions()
+    planned_mass = (plan.options or {}).get("object_mass")
+    if opts.object_mass is None and planned_mass is not None:  # the problem's object.mass
+        opts = dataclasses.replace(opts, object_mass=float(planned_mass))
     if hand is None or obj is None:
         from regrasp_casadi.problem import plan_models
 
