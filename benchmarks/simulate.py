@@ -48,22 +48,27 @@ GRAVITY = {"off": (0.0, 0.0, 0.0), "fingers_up": (0.0, 0.0, -9.81), "palm_up": (
 SERIES_DT = 0.05  # s, the recorded deviation series
 
 
-def open_gaits(plan, hand, obj) -> set[int]:
-    """Steps (indices) of the gaits whose three holding fingers are not in force closure (ε ≤ 1e-3,
-    μ = 0.5)."""
+def gait_margins(plan, hand, obj) -> dict[int, float]:
+    """step index -> force-closure margin ε (μ = 0.5, `stability.holding_quality`) of the fingers that
+    hold the object while a gait lifts its finger."""
     from regrasp_casadi.stability import holding_quality, torque_reference
 
     com, length = torque_reference(obj.mesh)
-    out = set()
+    out = {}
     for i, (before, step) in enumerate(zip(plan.steps[:-1], plan.steps[1:], strict=True), start=1):
         if step.kind != "gait":
             continue
         T = before.T_palm_object
         tips = (hand.tip_positions(before.q) - T[:3, 3]) @ T[:3, :3]
-        eps = holding_quality(before.contacts_object, tips, list(plan.fingers).index(step.finger), com, length)
-        if eps <= 1e-3:
-            out.add(i)
+        out[i] = holding_quality(before.contacts_object, tips, list(plan.fingers).index(step.finger), com,
+                                 length)
     return out
+
+
+def open_gaits(plan, hand, obj) -> set[int]:
+    """Steps (indices) of the gaits whose three holding fingers are not in force closure (ε ≤ 1e-3,
+    μ = 0.5)."""
+    return {i for i, eps in gait_margins(plan, hand, obj).items() if eps <= 1e-3}
 
 
 def step_class(plan, i: int, open_steps: set[int]) -> str:
@@ -145,7 +150,8 @@ def run_steps(plan, problem, conditions, opts_kw: dict) -> list[dict]:
     """One record per (step ≥ 1, condition): the step executed alone from its planned predecessor."""
     from regrasp_casadi.simulate import SimOptions, simulate
 
-    open_steps = open_gaits(plan, problem.hand, problem.obj)
+    margins = gait_margins(plan, problem.hand, problem.obj)
+    open_steps = {i for i, eps in margins.items() if eps <= 1e-3}
     out = []
     for i in range(1, len(plan.steps)):
         first = dataclasses.replace(plan.steps[i - 1], kind="initial", finger=None, path=None)
@@ -156,7 +162,7 @@ def run_steps(plan, problem, conditions, opts_kw: dict) -> list[dict]:
             out.append(dict(step=i, kind=step_class(plan, i, open_steps), finger=plan.steps[i].finger,
                             condition=cond, status=rep.status, settle_mm=rep.steps[0].deviation_mm,
                             mm=rep.steps[1].deviation_mm, deg=rep.steps[1].deviation_deg,
-                            grip_residual=rep.steps[1].grip_residual))
+                            grip_residual=rep.steps[1].grip_residual, margin=margins.get(i)))
     return out
 
 
