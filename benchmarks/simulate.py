@@ -259,7 +259,11 @@ def _args(argv):
 
 def main(argv: list[str] | None = None) -> int:
     args = _args(argv)
+    from machine import machine_info
+
     from regrasp_casadi.problem import RegraspProblem
+
+    info = machine_info(("mujoco", "numpy", "scipy", "casadi"))  # at the start: the commit that runs
 
     records, step_records, plans = [], [], []
     for path in problem_files(args.problems, args.pairs, args.problem_dir):
@@ -287,10 +291,7 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(step_table(step_records) if args.per_step else summary_table(records))
     if args.out:
-        from machine import machine_info
-
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        info = machine_info(("mujoco", "numpy", "scipy", "casadi"))
         args.out.write_text(json.dumps({"machine": info, "args": {k: str(v) for k, v in vars(args).items()},
                                         "plans": plans, "records": records, "step_records": step_records},
                                        indent=1))
