@@ -60,7 +60,8 @@ _TORQUE_LENGTH = 0.05   # m: torques are divided by it in the LP (comparable wit
 MOVING_FINGER_KINDS = ("gait", "slide")
 """Step kinds that move one finger (`PlanStep.finger`) while the others hold: it hands its load over
 first and takes it back at the end; a "gait" lifts it, a "slide" (the certified planner's) keeps it on
-the surface with no grip force (its certificate holds the object without its friction)."""
+the surface pushing along its contact normal only (the grip LP with that finger frictionless, as its
+certificate has it; physics still gives it friction, which the small normal force keeps small)."""
 
 
 # ------------------------------------------------------------------------------------------ plan motion
@@ -220,7 +221,8 @@ def _grip_lp(contacts: StepContacts, idx: NDArray, g_object: NDArray, mass: floa
 
 
 def grip_forces(contacts: StepContacts, holding: NDArray, g_object: NDArray, mass: float,
-                p_object_com: NDArray, opts: SimOptions) -> tuple[NDArray, float]:
+                p_object_com: NDArray, opts: SimOptions, frictionless: int | None = None
+                ) -> tuple[NDArray, float]:
     """Fingertip forces on the object that hold it against gravity (a linear program).
 
     For the fingers in ``holding``: minimise Σ normal force + 0.3 Σ |tangential components| + 1000 ·
@@ -230,7 +232,8 @@ def grip_forces(contacts: StepContacts, holding: NDArray, g_object: NDArray, mas
 
     Args:
         contacts: the step's contacts (object frame); holding: (m,) bool, fingers that press;
-        g_object: (3,) gravity in the object frame, m/s²; mass: kg; p_object_com: (3,) m.
+        g_object: (3,) gravity in the object frame, m/s²; mass: kg; p_object_com: (3,) m;
+        frictionless: the row of a finger that pushes along its normal only (a sliding finger), or None.
 
     Returns:
         (forces (m, 3) on the object, object frame, N, zero for fingers not holding;
@@ -248,13 +251,16 @@ def grip_forces(contacts: StepContacts, holding: NDArray, g_object: NDArray, mas
         P[3 * a:3 * a + 3, 5 * a:5 * a + 5] = [[1, 0, 0, 0, 0], [0, 1, -1, 0, 0], [0, 0, 0, 1, -1]]
     P[3 * k:, 5 * k:] = np.eye(12)
     cost = np.concatenate([np.tile([1.0, *[_TANGENT_WEIGHT] * 4], k), np.full(12, _SLACK_WEIGHT)])
-    bounds = [(opts.grip_force, None)] + [(0.0, None)] * 4
+    bounds = []
+    for j in idx:  # a frictionless (sliding) finger pushes along its normal only
+        bounds += [(opts.grip_force, None)] + [(0.0, 0.0 if j == frictionless else None)] * 4
+    bounds += [(0.0, None)] * 12
     res = linprog(cost, A_ub=A_ub @ P if len(A_ub) else None, b_ub=b_ub if len(A_ub) else None,
-                  A_eq=A_eq @ P, b_eq=b_eq, bounds=bounds * k + [(0.0, None)] * 12, method="highs")
+                  A_eq=A_eq @ P, b_eq=b_eq, bounds=bounds, method="highs")
     if res.status == 2 and len(A_ub):  # the torque limits exclude even the smallest grip: drop them
         keep = np.flatnonzero(b_ub == 0.0)
         res = linprog(cost, A_ub=A_ub[keep] @ P, b_ub=b_ub[keep], A_eq=A_eq @ P, b_eq=b_eq,
-                      bounds=bounds * k + [(0.0, None)] * 12, method="highs")
+                      bounds=bounds, method="highs")
     if res.status != 0:  # pragma: no cover - feasible by construction (slacks)
         raise RuntimeError(f"grip force LP failed: {res.message}")
     x = P @ res.x
@@ -288,11 +294,11 @@ def _plan_segments(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
     contacts = step_contacts(plan, hand)
     g_palm = np.asarray(opts.gravity_palm, dtype=float)
 
-    def grip(i: int, holding: NDArray) -> tuple[NDArray, float]:
+    def grip(i: int, holding: NDArray, frictionless: int | None = None) -> tuple[NDArray, float]:
         g_object = np.asarray(plan.steps[i].T_palm_object)[:3, :3].T @ g_palm
         if opts.grip == "squeeze":
             return np.zeros((len(holding), 3)), 0.0
-        return grip_forces(contacts[i], holding, g_object, mass, p_object_com, opts)
+        return grip_forces(contacts[i], holding, g_object, mass, p_object_com, opts, frictionless)
 
     ends = [grip(i, contacts[i].touching) for i in range(len(plan.steps))]
     residual = [r for _, r in ends]
@@ -302,10 +308,14 @@ def _plan_segments(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
         moving = step.kind in MOVING_FINGER_KINDS and step.finger
         g = list(plan.fingers).index(step.finger) if moving else None
         w_mid = c0.touching & c1.touching
-        if g is not None:
+        if g is not None and step.kind == "slide":  # the slider keeps pushing, along its normal only
+            F_mid, r_mid = grip(i - 1, w_mid, frictionless=g)
+        elif g is not None:  # a gait: the lifted finger lets go
             w_mid = w_mid.copy()
             w_mid[g] = False
-        F_mid, r_mid = grip(i - 1, w_mid) if g is not None else (ends[i][0], 0.0)
+            F_mid, r_mid = grip(i - 1, w_mid)
+        else:
+            F_mid, r_mid = ends[i][0], 0.0
         residual[i] = max(residual[i], r_mid)
         segments.append(_Segment(ends[i - 1][0], F_mid, ends[i][0], c0.touching, w_mid, c1.touching, g))
     return segments, contacts, residual
