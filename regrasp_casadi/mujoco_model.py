@@ -124,6 +124,9 @@ class SimOptions:
     unload_fraction: float = 0.2
     """Fraction of a gait step spent handing the moving finger's load to the others (and, at the end,
     taking it back) while its joints stay, -."""
+    min_handover_time: float = 0.1
+    """Shortest load hand-over of a gait or slide step, s: such a step lasts at least
+    min_handover_time / unload_fraction (a sudden change of the grip forces shakes the object)."""
     settle_time: float = 0.5
     """Time spent at the plan's first step before the motion starts, s (squeeze and gravity ramp in
     over its first 60 %)."""
@@ -140,6 +143,9 @@ class SimOptions:
     """Object position deviation above which the object counts as dropped, m."""
     min_fingers: int = 2
     """Fewest fingers touching the object at a step end for it to count as held."""
+    touch_window: float = 0.02
+    """A finger touches the object at a step end when it touched it at some instant of the last
+    `touch_window` s, s."""
     tol_position: float = 5e-3
     """Largest step-end position deviation (object centre of mass) for the plan to count as followed, m."""
     tol_rotation: float = 5.0

@@ -76,22 +76,27 @@ def _motion_time(plan: Plan, i: int, joint_velocity: float) -> float:
 
 
 def step_durations(plan: Plan, joint_velocity: float = 1.0, min_step_duration: float = 0.2,
-                   unload_fraction: float = 0.0) -> NDArray:
-    """(s,) duration of each step in the execution, s: 0 for step 0, else max(min_step_duration, D / (1 −
-    2 `unload_fraction`) for a gait (its load is handed over before and after the motion), D otherwise),
-    with D the step's own motion time: its path's duration, or max_j |q_i,j − q_i−1,j| / joint_velocity
-    for a step without a path."""
+                   unload_fraction: float = 0.0, min_handover_time: float = 0.0) -> NDArray:
+    """(s,) duration of each step in the execution, s: 0 for step 0, else max(min_step_duration, D) for a
+    step that moves no single finger, and for a gait or slide (its load is handed over before and after
+    the motion) max(min_step_duration, D / (1 − 2 `unload_fraction`), min_handover_time /
+    unload_fraction); D is the step's own motion time: its path's duration, or max_j |q_i,j − q_i−1,j| /
+    joint_velocity for a step without a path."""
     out = [0.0]
     for i in range(1, len(plan.steps)):
-        share = 1.0 - 2.0 * unload_fraction if plan.steps[i].kind in MOVING_FINGER_KINDS else 1.0
-        out.append(max(min_step_duration, _motion_time(plan, i, joint_velocity) / share))
+        d = _motion_time(plan, i, joint_velocity)
+        if plan.steps[i].kind in MOVING_FINGER_KINDS:
+            d = max(d / (1.0 - 2.0 * unload_fraction),
+                    min_handover_time / unload_fraction if unload_fraction > 0 else 0.0)
+        out.append(max(min_step_duration, d))
     return np.asarray(out)
 
 
 def step_end_times(plan: Plan, joint_velocity: float = 1.0, min_step_duration: float = 0.2,
-                   unload_fraction: float = 0.0) -> NDArray:
+                   unload_fraction: float = 0.0, min_handover_time: float = 0.0) -> NDArray:
     """(s,) time at which each step's motion ends, s (step 0 at 0), `step_durations` summed."""
-    return np.cumsum(step_durations(plan, joint_velocity, min_step_duration, unload_fraction))
+    return np.cumsum(step_durations(plan, joint_velocity, min_step_duration, unload_fraction,
+                                    min_handover_time))
 
 
 def _segments(t_end: NDArray, t: NDArray) -> tuple[NDArray, NDArray]:
@@ -121,7 +126,7 @@ def step_motion(plan: Plan, i: int, u: NDArray) -> tuple[NDArray, NDArray]:
 
 
 def plan_motion(plan: Plan, dt: float, joint_velocity: float = 1.0, min_step_duration: float = 0.2,
-                unload_fraction: float = 0.0):
+                unload_fraction: float = 0.0, min_handover_time: float = 0.0):
     """The plan's motion sampled every ``dt`` s, as executed (`step_end_times` gives its timing).
 
     Step i ends at ``step_end_times(plan, ...)[i]``; in between, `step_motion` (the step's path, else
@@ -131,7 +136,7 @@ def plan_motion(plan: Plan, dt: float, joint_velocity: float = 1.0, min_step_dur
     Returns:
         t (k,) s, from 0 to the end of the last step (included); q (k, n) rad; T_palm_object (k, 4, 4).
     """
-    t_end = step_end_times(plan, joint_velocity, min_step_duration, unload_fraction)
+    t_end = step_end_times(plan, joint_velocity, min_step_duration, unload_fraction, min_handover_time)
     t = np.arange(0.0, t_end[-1], dt)
     if t.size == 0 or t[-1] < t_end[-1] - 1e-12:
         t = np.append(t, t_end[-1])
@@ -359,7 +364,7 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
         targets that grip at step 0 (the settle's end); residual (s,) grip LP residual per step, N;
         q_start (n,) the hand at step 0 with the surface correction only (the settle's start).
     """
-    timing = (opts.joint_velocity, opts.min_step_duration, opts.unload_fraction)
+    timing = (opts.joint_velocity, opts.min_step_duration, opts.unload_fraction, opts.min_handover_time)
     t, q_lin, T = plan_motion(plan, CONTROL_DT, *timing)
     seg_idx, phase = _segments(step_end_times(plan, *timing), t)
     segments, contacts, residual = _plan_segments(plan, hand, opts, mass, p_object_com)

@@ -66,7 +66,8 @@ class StepRecord:
     deviation_deg: float
     """Angle between simulated and planned object orientation, degrees."""
     fingers_touching: tuple[str, ...]
-    """Fingers with at least one contact with the object."""
+    """Fingers with at least one contact with the object at the step end or in the `touch_window`
+    before it (a finger bouncing off for a few ms at that instant still holds)."""
     tip_normal_force: dict[str, float]
     """finger -> normal force of its fingertip sphere's contacts with the object, N."""
     other_normal_force: float
@@ -195,10 +196,12 @@ class _Probe:
         return tuple(f for f in self.fingers if f in touching), tip_force, other
 
 
-def _record(probe: _Probe, model, data, T_plan, *, step: int, kind: str, finger,
-            residual: float) -> StepRecord:
+def _record(probe: _Probe, model, data, T_plan, *, step: int, kind: str, finger, residual: float,
+            recent: set[str]) -> StepRecord:
+    """The step-end record; `recent`: fingers that touched the object within the touch window."""
     dev_mm, dev_deg = probe.deviation(data, T_plan)
     touching, tip_force, other = probe.contacts(model, data)
+    touching = tuple(f for f in probe.fingers if f in recent or f in touching)
     return StepRecord(step, kind, finger, float(data.time), dev_mm, dev_deg, touching, tip_force, other,
                       float(residual))
 
@@ -266,7 +269,8 @@ def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     # velocity feed-forward: the servo force kp (ctrl − q) − kv q̇ − damping q̇ then has no lag on a ramp
     Q = Q + (opts.kv + opts.joint_damping) / opts.kp * np.gradient(Q, dt, axis=0)
     T_ref = np.concatenate([np.repeat(T[:1], n_settle, 0), T[idx], np.repeat(T[-1:], n_hold, 0)])
-    t_end = step_end_times(plan, opts.joint_velocity, opts.min_step_duration, opts.unload_fraction)
+    t_end = step_end_times(plan, opts.joint_velocity, opts.min_step_duration, opts.unload_fraction,
+                           opts.min_handover_time)
     ends = n_settle + np.rint(t_end / dt).astype(int)
     return Q, T_ref, ends, n_settle, residual, q0
 
@@ -283,17 +287,22 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     series: dict[str, list] = {k: [] for k in ("t", "deviation_mm", "deviation_deg", "n_touching",
                                                "tip_normal_force", "other_normal_force", "q",
                                                "T_palm_object", "T_palm_object_plan")}
-    records, drop_time = [], None
+    window = max(1, int(round(opts.touch_window / opts.timestep)))
+    watch = {e - j for e in [*step_at, len(Q)] for j in range(1, window)}  # sim steps just before an end
+    records, drop_time, recent = [], None, set()
     for k in range(len(Q)):
         if k <= n_settle:
             model.opt.gravity[:] = gravity * min(1.0, k / max(0.6 * n_settle, 1))
         data.ctrl[sim.actuator] = Q[k]
         mujoco.mj_step(model, data)
+        if k + 1 in watch:
+            recent.update(probe.contacts(model, data)[0])
         if k + 1 in step_at:
             i = step_at[k + 1]
             st = plan.steps[i]
             records.append(_record(probe, model, data, st.T_palm_object, step=i, kind=st.kind,
-                                   finger=st.finger, residual=residual[i]))
+                                   finger=st.finger, residual=residual[i], recent=recent))
+            recent = set()
         if (k + 1) % every == 0 or k + 1 == len(Q):
             dev_mm, dev_deg = probe.deviation(data, T_ref[k])
             series["t"].append(float(data.time))
@@ -310,7 +319,7 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
                 drop_time = float(data.time)
     model.opt.gravity[:] = gravity
     records.append(_record(probe, model, data, plan.steps[-1].T_palm_object, step=len(plan.steps),
-                           kind="hold", finger=None, residual=residual[-1]))
+                           kind="hold", finger=None, residual=residual[-1], recent=recent))
     return records, series, drop_time
 
 
