@@ -276,6 +276,7 @@ def main(argv: list[str] | None = None) -> int:
                 head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,
                             verified=verified, plan_wall_s=plan_s)
                 plans.append(head | {"steps": len(plan.steps)})
+                _save(args, info, plans, records, step_records, complete=False)
                 if args.per_step:
                     step_records += [head | r for r in run_steps(plan, problem, args.conditions, opts_kw)]
                     print(f"{path.stem} {method} {stability}: {len(plan.steps)} steps", flush=True)
@@ -290,14 +291,20 @@ def main(argv: list[str] | None = None) -> int:
                           f"{figures} | {r['wall_s']:.1f} |", flush=True)
     print()
     print(step_table(step_records) if args.per_step else summary_table(records))
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps({"machine": info, "args": {k: str(v) for k, v in vars(args).items()},
-                                        "plans": plans, "records": records, "step_records": step_records},
-                                       indent=1))
-        if args.plot and records:
-            plot(records, args.out.with_suffix(".png"))
+    _save(args, info, plans, records, step_records, complete=True)
+    if args.out and args.plot and records:
+        plot(records, args.out.with_suffix(".png"))
     return 0
+
+
+def _save(args, info: dict, plans: list, records: list, step_records: list, complete: bool) -> None:
+    """Write the records so far to ``--out`` (``complete``: the run has ended)."""
+    if not args.out:
+        return
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"machine": info, "args": {k: str(v) for k, v in vars(args).items()},
+                                    "complete": complete, "plans": plans, "records": records,
+                                    "step_records": step_records}, indent=1))
 
 
 if __name__ == "__main__":
