@@ -132,6 +132,13 @@ def test_grip_forces_balance_gravity_within_the_cones(hand, box_problem):
     f_t = np.linalg.norm(F + f_n[:, None] * contacts.n_object, axis=1)
     assert (f_n >= opts.grip_force - 1e-9).all()
     assert (f_t <= opts.grip_friction_fraction * opts.friction * f_n + 1e-9).all()
+    # a sliding thumb (frictionless, as a slide step's certificate has it) pushes along its normal only
+    k = list(plan.fingers).index("thumb")
+    F_s, residual_s = grip_forces(contacts, contacts.touching, g_object, mass, com, opts, frictionless=k)
+    np.testing.assert_allclose(np.cross(F_s[k], contacts.n_object[k]), 0.0, atol=1e-9)
+    assert -F_s[k] @ contacts.n_object[k] >= opts.grip_force - 1e-9
+    if residual_s < 1e-6:
+        np.testing.assert_allclose(F_s.sum(axis=0), -mass * g_object, atol=1e-6)
     one_face = np.array([f != "thumb" for f in plan.fingers])
     _, residual_one_face = grip_forces(contacts, one_face, np.zeros(3), mass, com, opts)
     assert residual_one_face > opts.grip_force  # three ≥ 1 N pushes on one face, nothing opposes them
