@@ -137,8 +137,7 @@ def test_grip_forces_balance_gravity_within_the_cones(hand, box_problem):
     F_s, residual_s = grip_forces(contacts, contacts.touching, g_object, mass, com, opts, frictionless=k)
     np.testing.assert_allclose(np.cross(F_s[k], contacts.n_object[k]), 0.0, atol=1e-9)
     assert -F_s[k] @ contacts.n_object[k] >= opts.grip_force - 1e-9
-    if residual_s < 1e-6:
-        np.testing.assert_allclose(F_s.sum(axis=0), -mass * g_object, atol=1e-6)
+    assert residual_s >= residual - 1e-9   # taking a finger's friction away cannot help the balance
     one_face = np.array([f != "thumb" for f in plan.fingers])
     _, residual_one_face = grip_forces(contacts, one_face, np.zeros(3), mass, com, opts)
     assert residual_one_face > opts.grip_force  # three ≥ 1 N pushes on one face, nothing opposes them
