@@ -480,7 +480,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_host(sp)
     sp.set_defaults(func=cmd_view)
 
-    add_simulate_parser(add, finite=_finite, load_plan=_load_plan)
+    add_simulate_parser(add, load_plan=_load_plan)
     _add_export_parser(add)
 
     sp = add("grasps", "generate precision grasps on a mesh (or a problem's object)")

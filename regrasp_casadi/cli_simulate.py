@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import math
 from collections.abc import Callable
 
 from regrasp_casadi.cli_tools import check_output
@@ -52,12 +53,23 @@ def cmd_simulate(args: argparse.Namespace, load_plan: Callable) -> int:
     return EXIT_OK if report.held else EXIT_FAILED
 
 
-def add_simulate_parser(add, *, finite: Callable[[str], float], load_plan: Callable) -> None:
-    """The `simulate` subcommand (``add(name, help)`` makes a subparser); ``finite`` the argparse type
-    of a finite number, ``load_plan(path) -> Plan`` the CLI's plan reader."""
+def _finite(text: str) -> float:
+    """argparse type: a finite number."""
+    try:
+        x = float(text)
+    except ValueError:
+        x = math.nan
+    if not math.isfinite(x):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return x
+
+
+def add_simulate_parser(add, *, load_plan: Callable) -> None:
+    """The `simulate` subcommand (``add(name, help)`` makes a subparser); ``load_plan(path) -> Plan`` the
+    CLI's plan reader."""
     sp = add("simulate", "execute a plan in physics (MuJoCo) and report whether the object is held")
     sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
-    sp.add_argument("--gravity", type=finite, nargs=3, metavar=("X", "Y", "Z"),
+    sp.add_argument("--gravity", type=_finite, nargs=3, metavar=("X", "Y", "Z"),
                     help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81)")
     sp.add_argument("--html", metavar="SIM.html", help="write a self-contained replay of the simulated "
                     "motion, the planned object pose as a ghost")
