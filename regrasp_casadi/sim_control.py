@@ -30,7 +30,7 @@ Contact normal of a finger at a step = unit vector from its contact point to its
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -233,9 +233,7 @@ def grip_forces(contacts: StepContacts, holding: NDArray, g_object: NDArray, mas
     For the fingers in ``holding``: minimise Σ normal force + 0.3 Σ |tangential components| + 1000 ·
     |wrench residual|, with normal force ≥ ``opts.grip_force``, the tangential force in an octagonal
     pyramid inscribed in the cone of ``opts.grip_friction_fraction · opts.friction``, and every joint
-    torque within 80 % of ``opts.force_limit``. When that leaves a residual, the LP is solved again with
-    the whole cone (fraction 1) and the smaller residual kept: a holding set of small force-closure
-    margin (the certified planner accepts ε ≥ 1e-3 at μ = 0.5) may balance only with the whole cone.
+    torque within 80 % of ``opts.force_limit``.
 
     Args:
         contacts: the step's contacts (object frame); holding: (m,) bool, fingers that press;
@@ -246,20 +244,6 @@ def grip_forces(contacts: StepContacts, holding: NDArray, g_object: NDArray, mas
         (forces (m, 3) on the object, object frame, N, zero for fingers not holding;
          residual = |Σ f + m g| + |Σ (p − c) × f| / 5 cm, N: 0 when the contacts hold the object).
     """
-    forces, residual = _grip_solve(contacts, holding, g_object, mass, p_object_com, opts, frictionless)
-    if residual > 1e-6 and opts.grip_friction_fraction < 1.0:  # a small-margin grasp: the whole cone
-        full = replace(opts, grip_friction_fraction=1.0)
-        forces_full, residual_full = _grip_solve(contacts, holding, g_object, mass, p_object_com, full,
-                                                 frictionless)
-        if residual_full < residual - 1e-9:
-            return forces_full, residual_full
-    return forces, residual
-
-
-def _grip_solve(contacts: StepContacts, holding: NDArray, g_object: NDArray, mass: float,
-                p_object_com: NDArray, opts: SimOptions, frictionless: int | None
-                ) -> tuple[NDArray, float]:
-    """`grip_forces`' linear program at ``opts.grip_friction_fraction``."""
     idx = np.flatnonzero(holding)
     forces = np.zeros((len(holding), 3))
     if idx.size == 0:
