@@ -327,11 +327,17 @@ class InGraspNLP:
         self._points = ca.Function("in_grasp_points", [x, p], [s_obj, sd_tips, R, t], ["x", "p"],
                                    ["p_object_spheres", "sd_tips", "R_palm_object", "t_palm_object"])
         self._objective = ca.Function("in_grasp_objective", [x, p], [f], ["x", "p"], ["f"])
+        self._constraints = ca.Function("in_grasp_g", [x, p], [g], ["x", "p"], ["g"])
         self.warm_start = _solver.WarmStart()
         """Multipliers of the last successful solve, for the next one."""
-        N0, H0 = self.clearance.select(np.zeros((k, 3)))  # placeholder values (the centres need none)
-        self._blank = _Offsets(ClearanceParams(N0, H0, np.zeros((3, k)), np.zeros(k), np.zeros(k)),
-                               np.zeros(m))
+        self._blank = self._placeholder_offsets()
+
+    def _placeholder_offsets(self) -> _Offsets:
+        """Offsets with placeholder planes, for evaluations that need none (the sphere centres)."""
+        k = self._k
+        N0, H0 = self.clearance.select(np.zeros((k, 3)))
+        zero = np.zeros(k)
+        return _Offsets(ClearanceParams(N0, H0, np.zeros((3, k)), zero, zero), np.zeros(self._m))
 
     def reset(self) -> None:
         """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""
@@ -344,6 +350,24 @@ class InGraspNLP:
         centres = np.asarray(s_obj, float).T
         exact = np.asarray(self.obj.near_signed_distance(centres, self._radii_all + 0.01), float).ravel()
         return _Evaluation(exact, np.asarray(sd_tips, float).ravel(), centres)
+
+    def start_clearance(self, q: ArrayLike, T_palm_object: ArrayLike) -> NDArray[np.float64]:
+        """The non-tip spheres' clearance (k,), m, in the NLP's model at the start of a move from the grasp
+        (`q` (n,), `T_palm_object` (4, 4)): the first k constraints g/1000 with the model's first
+        parameters (`LocalClearance.at_start`), to compare with β."""
+        q, T0, k = np.asarray(q, float), np.asarray(T_palm_object, float), self._k
+        x = np.concatenate([q, np.zeros(6)])
+        blocks = self.layout.unpack(self._param_template())
+        blocks.update(R0_palm_object=T0[:3, :3], t0_palm_object=T0[:3, 3])
+        start = self._evaluate(x, self.layout.pack(**blocks))
+        blocks.update(self.clearance.at_start(start.centres[:k], start.exact[:k]).blocks("clear"))
+        return np.asarray(self._constraints(x, self.layout.pack(**blocks)), float).ravel()[:k] / _MM
+
+    def _param_template(self) -> NDArray[np.float64]:
+        """A parameter vector with every block filled (identity rotations, the placeholder planes)."""
+        blocks = {name: np.zeros(shape) for name, shape in self.layout.shapes.items()}
+        blocks.update(self._blank.clearance.blocks("clear"), R0_palm_object=np.eye(3))
+        return self.layout.pack(**blocks)
 
     def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tips: ArrayLike, *,
               T_target: ArrayLike | None = None,
@@ -369,7 +393,9 @@ class InGraspNLP:
             if p_object_tips_goal is None:
                 raise ValueError("method 'sd' needs p_object_tips_goal")
             target = {"p_object_tips_goal": np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T}
-            return self._solve_once(q, c_tips, grasp, target)
+            res = self._solve_once(q, c_tips, grasp, target)
+            res.record("opt2")
+            return res
         if T_target is None:
             raise ValueError("method 'svd' needs T_target")
         o = self.options
@@ -382,7 +408,9 @@ class InGraspNLP:
             spent = (spent[0] + res.solve_time, spent[1] + res.iterations)
             if res.success or res.max_slip <= o.max_slip:
                 break
-        return replace(res, solve_time=spent[0], iterations=spent[1])
+        res = replace(res, solve_time=spent[0], iterations=spent[1])
+        res.record("opt2")  # per-solve statistics (solve_log), when recorded
+        return res
 
     def _solve_once(self, q, c_tips, grasp: dict, target: dict) -> InGraspResult:
         """One move; `grasp` (the start pose, tips and their local planes) and `target` (pose or goal tip
