@@ -161,3 +161,21 @@ def test_target_at_the_current_pose_keeps_a_ycb_grasp():
         pytest.skip("YCB meshes not available")
     problem = RegraspProblem.load(path)
     _assert_stays(InGraspNLP(problem.hand, problem.obj, "svd"), problem)
+
+
+def test_solve_log_records_each_ipopt_call_and_the_move(box_problem, box_nlp):
+    """`solve_log.recording` sees every backend call of a move (their iterations add up to the move's,
+    as IPOPT counts them) and the move itself with the exact checks' verdict; nothing outside it."""
+    from regrasp_casadi.solve_log import recording
+
+    g0 = box_problem.grasp0
+    T_target = np.array(g0.T_palm_object)
+    T_target[:3, 3] += [0.002, 0.0, 0.0]
+    with recording() as log:
+        res = box_nlp.solve(g0.q, g0.T_palm_object, g0.tip_centers_object, T_target=T_target)
+    box_nlp.solve(g0.q, g0.T_palm_object, g0.tip_centers_object, T_target=T_target)  # not recorded
+    assert [c.kind for c in log.calls] == ["opt2"] * len(log.calls) and log.calls
+    assert sum(c.iterations for c in log.calls) == res.iterations
+    assert len(log.moves) == 1 and log.moves[0].accepted == res.success
+    s = log.summary()["opt2"]
+    assert s["calls"] == len(log.calls) and s["rejected"] == (0 if res.success else 1)
