@@ -201,7 +201,32 @@ def record(result, name: str, k: int) -> dict:
         min_clearance=float(result.verify_metrics.get("min_clearance", float("nan"))),
         success=bool(result.verified and error <= ZETA),
     )
+    log = getattr(result, "solve_log", None)
+    if log is not None:  # every backend call (kind, s, iterations) and OPT2 move (s, iterations, accepted)
+        rec["solve_calls"] = [[c.kind, c.time, c.iterations] for c in log.calls]
+        rec["solve_moves"] = [[m.kind, m.time, m.iterations, bool(m.accepted)] for m in log.moves]
+        rec["outside_solvers_time"] = rec["planning_time"] - sum(c.time for c in log.calls)
     return rec
+
+
+def solve_statistics(runs: list[dict]) -> dict:
+    """Over `runs` (one method's): per kind ("opt1", "opt2") the per-call median / p95 time (ms) and
+    iteration median / p95 / max, the moves and the share of their time spent on rejected ones
+    (`solve_log.summarise`); and the time outside the solvers, total and as a share of planning time."""
+    from regrasp_casadi.solve_log import SolveRecord, summarise
+
+    logged = [r for r in runs if "solve_calls" in r]
+    calls = [SolveRecord(k, t, i, "") for r in logged for k, t, i in r["solve_calls"]]
+    moves = [SolveRecord(k, t, i, "", a) for r in logged for k, t, i, a in r["solve_moves"]]
+    out: dict = summarise(calls, moves)
+    plan_time = sum(r["planning_time"] for r in logged)
+    outside = sum(r["outside_solvers_time"] for r in logged)
+    out["outside_solvers"] = {"time_s": outside, "share": outside / plan_time if plan_time > 0 else float("nan")}
+    t = np.array([r["planning_time"] for r in logged], float)
+    out["plan_time"] = {"median_s": float(np.median(t)) if t.size else float("nan"),
+                        "p95_s": float(np.percentile(t, 95)) if t.size else float("nan"),
+                        "max_s": float(np.max(t)) if t.size else float("nan"), "plans": int(t.size)}
+    return out
 
 
 def throughput(n_plans: int, wall_time: float, cores: int) -> dict:
@@ -250,7 +275,30 @@ def summarise(runs: list[dict]) -> dict:
         rs = [r for r in runs if r["method"] == method]
         if rs:
             out["per_method"][method] = stats(rs)
+            out.setdefault("solves", {})[method] = solve_statistics(rs)
     return out
+
+
+def solves_markdown(solves: dict) -> list[str]:
+    """The per-solve table (issue 10 targets: OPT2 ≤ 20 ms, OPT1 ≤ 3 ms median per call, iterations p95
+    ≤ 60, rejected < 5 % of OPT2 time, outside the solvers < 10 %)."""
+    lines = ["", "| method | NLP | calls | median / p95 per call (ms) | iterations median / p95 / max "
+             "| moves | rejected (share of time) |", "|---|---|---|---|---|---|---|"]
+    for method, s in solves.items():
+        for kind in ("opt1", "opt2"):
+            k = s.get(kind)
+            if not k:
+                continue
+            share = k["rejected_share"]
+            rejected = f"{k['rejected']} ({share * 100:.1f} %)" if np.isfinite(share) else "–"
+            lines.append(f"| {method.upper()} | {kind.upper()} | {k['calls']} | {k['call_median_ms']:.1f} / "
+                         f"{k['call_p95_ms']:.1f} | {k['iterations_median']:.0f} / {k['iterations_p95']:.0f} / "
+                         f"{k['iterations_max']:.0f} | {k['moves']} | {rejected} |")
+    for method, s in solves.items():
+        pt, out = s["plan_time"], s["outside_solvers"]
+        lines.append(f"\n{method.upper()}: plan time median {pt['median_s']:.2f} s, p95 {pt['p95_s']:.2f} s, max "
+                     f"{pt['max_s']:.2f} s; outside the solvers {out['share'] * 100:.1f} % of planning time.")
+    return lines
 
 
 def markdown(summary: dict, env: dict) -> str:
@@ -283,6 +331,8 @@ def markdown(summary: dict, env: dict) -> str:
             f"{_fmt(s['median_time'])} | {p['median_time']:g} | {_fmt(s['max_time'])} | "
             f"{_fmt(s['median_iterations'])} | {p['median_iterations']} | {_fmt(s['median_error'], 'mm')} | "
             f"{_fmt(s['max_error'], 'mm')} |")
+    if summary.get("solves"):
+        lines += solves_markdown(summary["solves"])
     tp = summary.get("throughput")
     if tp:
         lines += ["", f"Throughput: {tp['plans']} plans in {tp['wall_time']:.1f} s on {tp['cores']} core(s) "

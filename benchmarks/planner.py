@@ -3,7 +3,9 @@
 For each problem and method: planning time of a cold plan (NLPs built in it) and the median of warm
 plans (NLPs cached), the build time, iterations, steps, average point error (mean over fingers of the
 distance between planned final and desired contact), status, `verify`'s verdict, and the median and
-95th-percentile time of single IPOPT solves of OPT1 (finger gait) and OPT2 (reposing, final moves).
+95th-percentile time and iterations of single IPOPT solves of OPT1 (finger gait) and OPT2 (reposing,
+final moves) (`regrasp_casadi.solve_log`), the share of OPT2 time spent on moves the exact checks rejected
+and the share of a warm plan spent outside the solvers.
 Every plan is judged by the exact verifier. Prints a markdown table; writes
 benchmarks/results/planner.json with the machine description.
 
@@ -27,53 +29,35 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from machine import REPO, machine_info  # noqa: E402
 
-from regrasp_casadi import solver as solver_module  # noqa: E402
 from regrasp_casadi.planner import clear_nlp_cache, plan_regrasp  # noqa: E402
 from regrasp_casadi.problem import RegraspProblem  # noqa: E402
+from regrasp_casadi.solve_log import recording, summarise  # noqa: E402
 from regrasp_casadi.verify import verify  # noqa: E402
 
 RESULTS = REPO / "benchmarks" / "results" / "planner.json"
 
 
-class SolveLog:
-    """Records the wall time of every IPOPT call, by NLP kind, by wrapping `solver.solve`."""
-
-    def __init__(self) -> None:
-        self.times: dict[str, list[float]] = {"opt1": [], "opt2": []}
-        self._solve = solver_module.solve
-
-    def __enter__(self):
-        def wrapped(solver, **kwargs):
-            res = self._solve(solver, **kwargs)
-            kind = "opt1" if solver.name().startswith("finger_gait") else "opt2"
-            self.times[kind].append(res.time)
-            return res
-
-        solver_module.solve = wrapped
-        return self
-
-    def __exit__(self, *exc) -> None:
-        solver_module.solve = self._solve
-
-
 def run(problem_path: pathlib.Path, method: str, repeats: int) -> dict:
     problem = RegraspProblem.load(problem_path)
     clear_nlp_cache()
-    with SolveLog() as log:
-        t0 = time.perf_counter()
+    t0 = time.perf_counter()
+    with recording() as cold_log:
         cold = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method)
-        cold_time = time.perf_counter() - t0
-        warm_times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
+    cold_time = time.perf_counter() - t0
+    plan, warm_times, calls, moves, outside = cold, [], list(cold_log.calls), list(cold_log.moves), []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        with recording() as log:
             plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method)
-            warm_times.append(time.perf_counter() - t0)
+        warm_times.append(time.perf_counter() - t0)
+        calls += log.calls
+        moves += log.moves
+        outside.append(warm_times[-1] - sum(c.time for c in log.calls))
+    stats = summarise(calls, moves)  # per call and per OPT2 move, cold and warm plans
+    nan = float("nan")
     report = verify(plan, problem.hand, problem.obj)
     final_error = np.linalg.norm(plan.steps[-1].contacts_object - plan.goal_contacts_object, axis=1)
     kinds = [s.kind for s in plan.steps]
-
-    def q(values, p):
-        return float(np.percentile(values, p)) if values else float("nan")
 
     return {
         "problem": problem_path.stem, "method": method, "status": plan.status, "verified": report.ok,
@@ -83,9 +67,12 @@ def run(problem_path: pathlib.Path, method: str, repeats: int) -> dict:
         "gaits": kinds.count("gait"), "reposes": kinds.count("repose"), "finals": kinds.count("final"),
         "avg_point_error_mm": float(np.mean(final_error) * 1e3),
         "max_point_error_mm": float(np.max(final_error) * 1e3),
-        "opt1_median_ms": q(log.times["opt1"], 50) * 1e3, "opt1_p95_ms": q(log.times["opt1"], 95) * 1e3,
-        "opt2_median_ms": q(log.times["opt2"], 50) * 1e3, "opt2_p95_ms": q(log.times["opt2"], 95) * 1e3,
-        "n_opt1": len(log.times["opt1"]), "n_opt2": len(log.times["opt2"]),
+        **{f"{kind}_{key}": stats.get(kind, {}).get(src, nan) for kind in ("opt1", "opt2")
+           for key, src in (("median_ms", "call_median_ms"), ("p95_ms", "call_p95_ms"), ("n", "calls"),
+                            ("iterations_p50", "iterations_median"), ("iterations_p95", "iterations_p95"))},
+        "opt2_rejected_share": stats.get("opt2", {}).get("rejected_share", nan),
+        "opt2_rejected_time_s": stats.get("opt2", {}).get("rejected_time_s", nan),
+        "outside_solvers_share": statistics.median(outside) / statistics.median(warm_times) if outside else nan,
         "min_clearance_mm": report.metrics["min_clearance"] * 1e3,
         "max_surface_error_mm": report.metrics["max_surface_error"] * 1e3,
     }
@@ -94,8 +81,8 @@ def run(problem_path: pathlib.Path, method: str, repeats: int) -> dict:
 def table(rows: list[dict]) -> str:
     head = ("| problem | method | status | verified | plan, warm (s) | cold (s) | build (s) | iters "
             "| steps (gait/repose/final) | avg / max point error (mm) | OPT1 median / p95 (ms) "
-            "| OPT2 median / p95 (ms) |")
-    lines = [head, "|" + "---|" * 12]
+            "| OPT2 median / p95 (ms) | OPT2 iterations p95 | OPT2 rejected | outside solvers |")
+    lines = [head, "|" + "---|" * 15]
     for r in rows:
         lines.append(
             f"| {r['problem']} | {r['method']} | {r['status']} | {'yes' if r['verified'] else 'NO'} | "
@@ -103,7 +90,8 @@ def table(rows: list[dict]) -> str:
             f"{r['iterations']} | {r['steps']} ({r['gaits']}/{r['reposes']}/{r['finals']}) | "
             f"{r['avg_point_error_mm']:.2f} / {r['max_point_error_mm']:.2f} | "
             f"{r['opt1_median_ms']:.1f} / {r['opt1_p95_ms']:.1f} | {r['opt2_median_ms']:.1f} / "
-            f"{r['opt2_p95_ms']:.1f} |")
+            f"{r['opt2_p95_ms']:.1f} | {r['opt2_iterations_p95']:.0f} | {r['opt2_rejected_share'] * 100:.1f} % | "
+            f"{r['outside_solvers_share'] * 100:.0f} % |")
     return "\n".join(lines)
 
 
@@ -131,6 +119,7 @@ def main(argv: list[str] | None = None) -> None:
             "plan_time_median_s": statistics.median(r["warm_time_median_s"] for r in mine),
             "opt1_median_ms": statistics.median(r["opt1_median_ms"] for r in mine),
             "opt2_median_ms": statistics.median(r["opt2_median_ms"] for r in mine),
+            "opt2_iterations_p95_max": max(r["opt2_iterations_p95"] for r in mine),
             "verified": sum(r["verified"] for r in mine), "runs": len(mine),
         }
     out = {"machine": machine_info(), "rows": rows, "summary": summary}

@@ -102,6 +102,8 @@ class BatchResult:
     """Where it ran: ``host:pid`` of the worker process."""
     error: str | None = None
     """``ExceptionType: message`` of an exception that escaped reading, planning or verifying, else None."""
+    solve_log: Any = None
+    """The plan's `solve_log.SolveLog` (every backend call and NLP move), None without a plan."""
 
     @property
     def status(self) -> str:
@@ -201,6 +203,7 @@ def run_job(job: _Job) -> BatchResult:
         from regrasp_casadi.grasp import Grasp
         from regrasp_casadi.planner import plan_regrasp
         from regrasp_casadi.problem import plan_models
+        from regrasp_casadi.solve_log import recording
         from regrasp_casadi.verify import verify
 
         job = _read_problem(job)
@@ -209,7 +212,8 @@ def run_job(job: _Job) -> BatchResult:
         hand, obj = plan_models(SimpleNamespace(hand_spec=job.hand_spec, object_spec=job.object_spec))
         grasp0 = Grasp.from_joints(hand, obj, job.q0, job.T_palm_object0)
         goal = Grasp.from_contacts(hand, obj, job.goal_contacts_object, job.goal_T_palm_object, q=job.goal_q)
-        plan = plan_regrasp(grasp0, goal, **dict(job.overrides), method=job.method)
+        with recording() as log:
+            plan = plan_regrasp(grasp0, goal, **dict(job.overrides), method=job.method)
         report = verify(plan, hand, obj)
     except Exception as exc:  # noqa: BLE001 - a batch records failures, it does not stop on them
         _log.debug("job %d (%s) failed", job.index, job.label, exc_info=True)
@@ -217,7 +221,7 @@ def run_job(job: _Job) -> BatchResult:
                            cpu_time=time.process_time() - cpu0)
     return BatchResult(
         **base, plan=plan, verified=bool(report.ok), verify_summary=report.summary(),
-        verify_metrics=dict(report.metrics),
+        verify_metrics=dict(report.metrics), solve_log=log,
         violations=tuple(f"step {v.step}: {v.check} [{v.who}]: {v.message}" for v in report.violations),
         wall_time=time.perf_counter() - t0, cpu_time=time.process_time() - cpu0)
 

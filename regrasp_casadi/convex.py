@@ -59,6 +59,7 @@ __all__ = [
     "hull_error",
     "is_near_convex",
     "select_local_planes",
+    "select_local_planes_batch",
     "simplify_piece",
 ]
 
@@ -539,3 +540,42 @@ def select_local_planes(pieces: Sequence[ConvexPiece], points: ArrayLike, n_piec
         top = np.resize(top, k)
         N[j], H[j] = pieces[c].normals[top], pieces[c].offsets[top]
     return N, H
+
+
+def select_local_planes_batch(pieces: Sequence[ConvexPiece], points: ArrayLike, n_pieces: int = LOCAL_PIECES,
+                              k: int = LOCAL_PLANES) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """`select_local_planes` for b point sets at once (one numpy pass over all planes).
+
+    Args:
+        pieces: the object's convex pieces.
+        points: (b, s, 3) — b sets of s points each, object frame, m (e.g. a sphere's centre at the start
+            and at the last solution).
+        n_pieces, k: pieces kept per set, planes kept per piece.
+
+    Returns:
+        normals (b, n_pieces, k, 3) and offsets (b, n_pieces, k): entry i is
+        ``select_local_planes(pieces, points[i], n_pieces, k)``.
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 3 or pts.shape[2] != 3:
+        raise ValueError(f"points must be (b, s, 3), got {pts.shape}")
+    counts = np.array([len(pc.offsets) for pc in pieces])
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    normals = np.concatenate([pc.normals for pc in pieces])
+    offsets = np.concatenate([pc.offsets for pc in pieces])
+    values = pts @ normals.T - offsets  # (b, s, T)
+    piece_hard = np.maximum.reduceat(values, starts, axis=2).min(axis=1)  # (b, P): hard distance
+    nearest = np.argsort(piece_hard, axis=1, kind="stable")[:, :n_pieces]
+    nearest = nearest[:, np.resize(np.arange(nearest.shape[1]), n_pieces)]  # repeat when too few
+    plane_value = values.max(axis=1)  # (b, T): each plane's largest value over the set's points
+    k_max = int(counts.max())
+    pad = np.arange(k_max)
+    index = np.where(pad < counts[:, None], starts[:, None] + pad, -1)  # (P, k_max) into T, -1: none
+    gathered = np.where(index[nearest] >= 0, np.take_along_axis(
+        plane_value[:, None, :], np.maximum(index[nearest], 0), axis=2), -np.inf)  # (b, n, k_max)
+    order = np.argsort(-gathered, axis=2, kind="stable")
+    kc = counts[nearest][..., None]  # (b, n, 1) planes of each kept piece
+    pos = np.arange(k)
+    order = np.take_along_axis(order, np.where(pos < kc, pos, pos % kc), axis=2)  # (b, n, k)
+    plane = np.take_along_axis(index[nearest], order, axis=2)
+    return normals[plane], offsets[plane]

@@ -24,6 +24,7 @@ from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
 from regrasp_casadi.constants import K_ORIENT, K_POS
 from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
+from regrasp_casadi.local_clearance import ClearanceParams, LocalClearance
 from regrasp_casadi.self_collision import SelfCollisionConstraint
 from regrasp_casadi.signed_distance import DEFAULT_TAU
 from regrasp_casadi.transforms import interpolate_pose, inv_T, kabsch, log_SO3, make_T
@@ -37,6 +38,8 @@ __all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "wo
 _log = logging.getLogger(__name__)
 
 _MM = 1e3  # positions in the objective and distance constraints: m → mm
+_SLACK = 5e-6  # a constraint held at its start value ("no worse") may give this much, m, so that the
+# start is strictly inside for the interior-point solver (`SelfCollisionConstraint.holds` allows 10 µm)
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,12 @@ class InGraspOptions(_solver.NLPOptions):
     """Temperature of the smooth distance to the workspace hulls and of the smooth max(0, ·), m."""
     max_slip: float = 5e-4
     """A result whose tip centres moved more than this relative to the object is rejected, m."""
+    clearance_pieces: int = 2
+    """Convex pieces in each non-tip sphere's local plane set (`local_clearance.LocalClearance`)."""
+    clearance_local_planes: int = 8
+    """Planes per piece in each non-tip sphere's local plane set."""
+    offset_radius: float = 0.005
+    """σ, m: distance from the start over which a positive exact-distance offset of a sphere fades."""
 
 
 @dataclass(frozen=True)
@@ -138,21 +147,43 @@ def _clip_pose(T_from: NDArray, T_to: NDArray, max_translation: float, max_angle
     return interpolate_pose(T_from, T_to, frac)
 
 
+@dataclass(frozen=True)
+class _Evaluation:
+    """The exact distances of a point x of OPT2 (see `InGraspNLP._evaluate`)."""
+
+    exact: NDArray[np.float64]
+    """(k + m,) exact distances of the sphere centres, non-tip spheres then tips, m."""
+    sd_tips: NDArray[np.float64]
+    """(m,) smooth distances of the tips on their local planes (no offsets), m."""
+    centres: NDArray[np.float64]
+    """(k + m, 3) sphere centres, object frame, m."""
+
+
+@dataclass(frozen=True)
+class _Offsets:
+    """What the correction loop updates: the clearance model's parameters and the tips' offsets."""
+
+    clearance: ClearanceParams
+    delta_tips: NDArray[np.float64]
+    """(m,) exact − smooth distance of the tips, m."""
+
+
 def _facet_area(tri: NDArray[np.float64]) -> float:
     return 0.5 * float(np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])))
 
 
-def _param_layout(method: str, k: int, m: int, n_planes: int) -> _solver.ParamLayout:
-    """OPT2's parameters for a hand of `k` non-tip spheres and `m` fingers, `n_planes` local planes per
-    tip; the target blocks depend on the method."""
+def _param_layout(method: str, clearance: LocalClearance, m: int, n_planes: int) -> _solver.ParamLayout:
+    """OPT2's parameters for a hand of `m` fingers, `n_planes` local planes per tip and the non-tip
+    spheres' `clearance` model; the target blocks depend on the method."""
     blocks = [
         ("R0_palm_object", (3, 3)),  # object pose at the start, palm frame
         ("t0_palm_object", (3,)),  # m
         ("p_object_tips", (3, m)),  # tip-sphere centres at the start (columns), object frame, m
         ("R_object_tips", (3, 3 * m)),  # tip orientations at the start, object frame: [R_1 | … | R_m]
-        ("delta_l", (k + m,)),  # exact-distance offsets: non-tip spheres, then tips, m
+        ("delta_tips", (m,)),  # exact-distance offsets of the tips, m
         ("normals_tips", (3 * n_planes, m)),  # local planes near each tip (columns, as
         ("offsets_tips", (n_planes, m)),  # signed_distance.local_signed_distance reads them)
+        *clearance.blocks("clear").items(),  # local planes and offsets of the non-tip spheres
     ]
     if method == "svd":
         blocks += [("R_target", (3, 3)), ("t_target", (3,))]  # target object pose, palm frame
@@ -194,7 +225,8 @@ class InGraspNLP:
     .. math::
         \min_{\Theta, \Delta t, w} \; E_{des} + k_1 E_{pos}(\Theta) + k_2 E_{or}(\Theta)
         \quad \text{s.t.} \quad \Theta_{min} \preceq \Theta \preceq \Theta_{max},\;
-        SD(R^T(FK_l(\Theta) - t), M) + \delta_l - \rho_l \ge \beta \;\; \forall \text{non-tip spheres } l, \;
+        d_l(R^T(FK_l(\Theta) - t)) - \rho_l \ge \min(\beta, d_l(c_l) - \rho_l) \;\;
+        \forall \text{non-tip spheres } l, \;
         SD(R^T(FK_r(\Theta) - t), M) + \delta_r = \rho \;\; \forall \text{fingers } r
 
     Relaxed rigidity (Sundaralingam & Hermans, 2017): with c_r the tip-sphere centres and
@@ -212,9 +244,17 @@ class InGraspNLP:
 
     The tip-on-surface equality is an addition to the paper's OPT2: the relaxed rigidity alone lets a
     tip drift off the surface by ~0.1–1 mm when other constraints are active. A trust region bounds |Δt|
-    and |w| per reposing. δ are exact-distance offsets (see FingerGaitNLP); the tips' distances use the
-    local planes at their contacts (parameters, `ObjectModel.local_planes`), the other spheres the
-    coarse pieces (`clearance_distance_function`: whole pieces, so a large move cannot leave them).
+    and |w| per reposing. δ_r are the tips' exact-distance offsets (see FingerGaitNLP); the tips'
+    distances use the local planes at their contacts (parameters, `ObjectModel.local_planes`).
+
+    Clearance model (`local_clearance.LocalClearance`): each non-tip sphere l has its own local plane
+    set (parameters, selected near its start centre c_l, re-selected near the start and the solution
+    between corrections) and ``d_l(p) = s_l(p) + δ⁻_l + δ⁺_l exp(−|p − c_l|²/σ²)``, the exact offset at
+    the start split both ways, so that d_l(c_l) is the exact distance: a grasp feasible on the mesh is
+    feasible in the model, and a sphere already closer than β keeps at least its start value. After
+    each solve the exact distances at the solution correct δ⁻ where the model was optimistic; the move is
+    judged with the exact distances. A solution whose objective is not below the start's is replaced by
+    the start (with the target at the current pose the grasp stays where it is).
 
     Self-collision (not in the paper; `options.self_clearance` = c, None: off): every sphere pair (a, b)
     of two fingers, or of a finger and the palm, in `Hand.self_collision_pairs(within=c)` keeps
@@ -235,7 +275,9 @@ class InGraspNLP:
         self._radii, self._k, self._n, self._m = radii, k, n, m
         tau = float(DEFAULT_TAU if o.tau is None else o.tau)
         n_local = self._n_local = min(LOCAL_PIECES, len(obj.pieces))  # pieces per local plane set
-        sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
+        self.clearance = LocalClearance(obj.pieces, k, o.clearance_pieces, o.clearance_local_planes, tau,
+                                        o.offset_radius)
+        """The non-tip spheres' clearance model (local plane sets, two-way offsets)."""
         ell_mm = _MM * 0.5 * float(np.linalg.norm(obj.mesh.extents))
 
         # decision variables
@@ -244,7 +286,7 @@ class InGraspNLP:
         w = ca.SX.sym("w", 3)
         x = ca.vertcat(q, dt, w)
         # parameters
-        self.layout = _param_layout(method, k, m, n_local * LOCAL_PLANES)
+        self.layout = _param_layout(method, self.clearance, m, n_local * LOCAL_PLANES)
         p, P = self.layout.symbols()
         R, t = terms.pose_from_params(P["R0_palm_object"], P["t0_palm_object"], dt, w)
 
@@ -262,9 +304,10 @@ class InGraspNLP:
         s_obj = terms.to_object_frame(R, t, ca.horzcat(hand.sphere_centers_function(None)(q), tips_palm))
         sd_tips = [signed_distance.local_signed_distance(P["normals_tips"][:, r], P["offsets_tips"][:, r],
                                                          s_obj[:, k + r], n_local, tau) for r in range(m)]
-        sd_l = ca.vertcat(terms.smooth_signed_distances(sd_coarse, s_obj[:, :k]), *sd_tips)
+        sd_tips = ca.vertcat(*sd_tips)
+        _, d_clear = self.clearance.distances(s_obj[:, :k], P, "clear")
         radii_all = np.concatenate([radii, np.full(m, hand.tip_radius)])
-        g = _MM * (sd_l + P["delta_l"] - ca.DM(radii_all))
+        g = _MM * (ca.vertcat(d_clear, sd_tips + P["delta_tips"]) - ca.DM(radii_all))
         lbg = np.concatenate([np.full(k, _MM * o.beta), np.zeros(m)])
         ubg = np.concatenate([np.full(k, np.inf), np.zeros(m)])
         # self-collision: sphere pairs of different fingers and of a finger and the palm
@@ -281,29 +324,50 @@ class InGraspNLP:
         # solver
         self._solver = _solver.build_solver(f"in_grasp_{method}", {"x": x, "p": p, "f": f, "g": g},
                                             o.solver_options())
-        self._points = ca.Function("in_grasp_points", [x, p], [s_obj, sd_l, R, t],
-                                   ["x", "p"], ["p_object_spheres", "sd_l", "R_palm_object", "t_palm_object"])
+        self._points = ca.Function("in_grasp_points", [x, p], [s_obj, sd_tips, R, t], ["x", "p"],
+                                   ["p_object_spheres", "sd_tips", "R_palm_object", "t_palm_object"])
+        self._objective = ca.Function("in_grasp_objective", [x, p], [f], ["x", "p"], ["f"])
+        self._constraints = ca.Function("in_grasp_g", [x, p], [g], ["x", "p"], ["g"])
         self.warm_start = _solver.WarmStart()
         """Multipliers of the last successful solve, for the next one."""
+        self._blank = self._placeholder_offsets()
+
+    def _placeholder_offsets(self) -> _Offsets:
+        """Offsets with placeholder planes, for evaluations that need none (the sphere centres)."""
+        k = self._k
+        N0, H0 = self.clearance.select(np.zeros((k, 3)))
+        zero = np.zeros(k)
+        return _Offsets(ClearanceParams(N0, H0, np.zeros((3, k)), zero, zero), np.zeros(self._m))
 
     def reset(self) -> None:
         """Forget the warm-start multipliers (a new plan starts cold, so plans are reproducible)."""
         self.warm_start.reset()
 
-    def _offsets(self, exact: NDArray, smooth: NDArray) -> NDArray:
-        """Exact-distance offsets δ: the tips' in full (an equality), the clearance spheres' only where
-        they make the model more conservative (δ ≤ 0), so that a sphere that moves away from where δ was
-        taken is never judged farther than it is."""
-        delta = exact - smooth
-        delta[: self._k] = np.minimum(delta[: self._k], 0.0)
-        return delta
+    def _evaluate(self, x, p) -> _Evaluation:
+        """The exact distances (k + m,) of the non-tip spheres, then the tips, the tips' smooth ones (m,)
+        (no offsets) and the sphere centres (k + m, 3), object frame, m, at `x`."""
+        s_obj, sd_tips, _, _ = self._points(x, p)
+        centres = np.asarray(s_obj, float).T
+        exact = np.asarray(self.obj.near_signed_distance(centres, self._radii_all + 0.01), float).ravel()
+        return _Evaluation(exact, np.asarray(sd_tips, float).ravel(), centres)
 
-    def _distances(self, x, p) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Exact and smooth (no offsets) distances (k + m,) of the non-tip spheres, then the tips, m."""
-        s_obj, sd_l, _, _ = self._points(x, p)
-        exact = np.asarray(self.obj.near_signed_distance(np.asarray(s_obj).T, self._radii_all + 0.01),
-                           float).ravel()
-        return exact, np.asarray(sd_l, float).ravel()
+    def start_clearance(self, q: ArrayLike, T_palm_object: ArrayLike) -> NDArray[np.float64]:
+        """The non-tip spheres' clearance (k,), m, in the NLP's model at the start of a move from the grasp
+        (`q` (n,), `T_palm_object` (4, 4)): the first k constraints g/1000 with the model's first
+        parameters (`LocalClearance.at_start`), to compare with β."""
+        q, T0, k = np.asarray(q, float), np.asarray(T_palm_object, float), self._k
+        x = np.concatenate([q, np.zeros(6)])
+        blocks = self.layout.unpack(self._param_template())
+        blocks.update(R0_palm_object=T0[:3, :3], t0_palm_object=T0[:3, 3])
+        start = self._evaluate(x, self.layout.pack(**blocks))
+        blocks.update(self.clearance.at_start(start.centres[:k], start.exact[:k]).blocks("clear"))
+        return np.asarray(self._constraints(x, self.layout.pack(**blocks)), float).ravel()[:k] / _MM
+
+    def _param_template(self) -> NDArray[np.float64]:
+        """A parameter vector with every block filled (identity rotations, the placeholder planes)."""
+        blocks = {name: np.zeros(shape) for name, shape in self.layout.shapes.items()}
+        blocks.update(self._blank.clearance.blocks("clear"), R0_palm_object=np.eye(3))
+        return self.layout.pack(**blocks)
 
     def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tips: ArrayLike, *,
               T_target: ArrayLike | None = None,
@@ -329,7 +393,9 @@ class InGraspNLP:
             if p_object_tips_goal is None:
                 raise ValueError("method 'sd' needs p_object_tips_goal")
             target = {"p_object_tips_goal": np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T}
-            return self._solve_once(q, c_tips, grasp, target)
+            res = self._solve_once(q, c_tips, grasp, target)
+            res.record("opt2")
+            return res
         if T_target is None:
             raise ValueError("method 'svd' needs T_target")
         o = self.options
@@ -342,42 +408,67 @@ class InGraspNLP:
             spent = (spent[0] + res.solve_time, spent[1] + res.iterations)
             if res.success or res.max_slip <= o.max_slip:
                 break
-        return replace(res, solve_time=spent[0], iterations=spent[1])
+        res = replace(res, solve_time=spent[0], iterations=spent[1])
+        res.record("opt2")  # per-solve statistics (solve_log), when recorded
+        return res
 
     def _solve_once(self, q, c_tips, grasp: dict, target: dict) -> InGraspResult:
         """One move; `grasp` (the start pose, tips and their local planes) and `target` (pose or goal tip
-        centres) are parameter blocks of `layout`."""
-        o = self.options
+        centres) are parameter blocks of `layout`. The clearance model is taken at the start (local
+        planes, two-way offsets: `LocalClearance.at_start`), a sphere already closer than β keeps at least
+        its start value, and after each solve the exact distances correct it (`LocalClearance.correction`)."""
+        o, k = self.options, self._k
 
-        def params(delta):
-            return self.layout.pack(**grasp, delta_l=delta, **target)
+        def params(off: _Offsets):
+            return self.layout.pack(**grasp, **off.clearance.blocks("clear"), delta_tips=off.delta_tips,
+                                    **target)
 
         x_start = np.concatenate([q, np.zeros(6)])
-
         sc = self.self_collision
         bounds, floor = (self._bounds, None) if sc is None else sc.bounds(self._bounds, q, _MM)
+        start = self._evaluate(x_start, params(self._blank))  # the centres do not depend on the planes
+        p_start, exact_start = start.centres[:k], start.exact[:k]
+        off0 = _Offsets(self.clearance.at_start(p_start, exact_start), start.exact[k:] - start.sd_tips)
+        start_gap = exact_start - self._radii
 
-        def solve_with(x, delta):  # every solve starts at the grasp (x_start), warm multipliers aside
-            return self.warm_start.solve(self._solver, bounds, x0=x_start, p=params(delta))
+        def solve_with(x, off: _Offsets):  # every solve starts at the grasp (x_start), warm multipliers aside
+            _, model = self.clearance.evaluate(p_start, off.clearance)
+            lbg = bounds.lbg.copy()  # a sphere closer than β at the start keeps its start value (no worse)
+            lbg[:k] = _MM * np.minimum(o.beta, model - self._radii - _SLACK)
+            if floor is not None:  # the same slack for self-collision pairs at their start value
+                lbg[lbg.size - floor.size:] -= _MM * _SLACK * (floor < sc.clearance)
+            b = replace(bounds, lbg=lbg)
+            return self.warm_start.solve(self._solver, b, x0=x_start, p=params(off))
 
-        def done(distances) -> bool:
-            gap = distances[0] - self._radii_all  # exact distance − radius
-            clear = np.min(gap[: self._k], initial=np.inf)
-            return bool(clear >= 0.5 * o.beta and np.max(np.abs(gap[self._k:])) <= 5e-5)
+        def new_offsets(x, ev: _Evaluation, off: _Offsets) -> _Offsets:
+            clear = self.clearance.correction(off.clearance, p_start, exact_start, ev.centres[:k],
+                                              ev.exact[:k])
+            return _Offsets(clear, ev.exact[k:] - ev.sd_tips)
 
-        zeros = np.zeros(self._k + self._m)
-        start = self._distances(x_start, params(zeros))
+        def done(ev: _Evaluation) -> bool:
+            gap = ev.exact - self._radii_all  # exact distance − radius
+            clear = bool(np.all(gap[:k] >= np.minimum(0.5 * o.beta, start_gap - 1e-5)))
+            return clear and bool(np.max(np.abs(gap[k:])) <= 5e-5)
+
         corr = _solver.correct_offsets(
-            solve_with, lambda x, delta: self._distances(x, params(delta)), done,
-            lambda x, distances, delta: self._offsets(*distances), offsets=self._offsets(*start),
+            solve_with, lambda x, off: self._evaluate(x, params(off)), done, new_offsets, offsets=off0,
             x=x_start, evaluation=start, max_solves=o.max_corrections + 1,
             accept=_solver.clipped_if_finite(self._bounds))
-        return self._result(corr, c_tips, params(zeros), floor)
+        if corr.x is not x_start and self._no_better(corr.x, x_start, params(off0)):
+            corr = replace(corr, x=x_start, evaluation=start)  # staying is a fixed point
+        return self._result(corr, c_tips, params(self._blank), floor)
+
+    def _no_better(self, x, x_start, p) -> bool:
+        """Whether the solution `x` does not lower the objective below the start's (then the start, a
+        feasible point of the NLP, is kept: with the target at the current pose the grasp stays)."""
+        f = float(self._objective(x, p))
+        f_start = float(self._objective(x_start, p))
+        return not f < f_start - 1e-9 * max(1.0, abs(f_start))
 
     def _result(self, corr: _solver.Correction, c_tips: NDArray, p_zero: NDArray, floor) -> InGraspResult:
         """The move's result from the correction loop's last point, judged with the exact distances."""
         o = self.options
-        x, exact = corr.x, corr.evaluation[0]
+        x, exact = corr.x, corr.evaluation.exact
         _, _, R_new, t_new = self._points(x, p_zero)  # (`exact` is already at x)
         T_new = make_T(np.asarray(R_new), np.asarray(t_new).ravel())
         surface_error = float(np.max(np.abs(exact[self._k:] - self.hand.tip_radius)))

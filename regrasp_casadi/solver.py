@@ -24,6 +24,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from regrasp_casadi import solve_log
 from regrasp_casadi.constants import BETA, SELF_CLEARANCE
 
 __all__ = [
@@ -218,6 +219,7 @@ def solve(solver: ca.Function, *, x0, p, lbx, ubx, lbg, ubg, lam_x0=None, lam_g0
         iterations = int(stats.get("iter_count", -1))
     except RuntimeError:  # CasADi 3.8 can raise from stats() after some failed solves
         status, iterations = "unknown", -1
+    solve_log.record_call(solver.name(), elapsed, iterations, status)  # (only inside a recording)
     return SolveResult(
         x=np.asarray(sol["x"], float).ravel(),
         lam_x=np.asarray(sol["lam_x"], float).ravel(),
@@ -372,6 +374,10 @@ class SolveStats:
     """Backend iterations over all solves."""
     solve_time: float
     """Wall time inside the solves, s."""
+
+    def record(self, kind: str) -> None:
+        """Report this result to the active `solve_log.recording`s as one move of an NLP of `kind`."""
+        solve_log.record_move(kind, self.solve_time, self.iterations, self.status, self.success)
 
 
 def clipped_if_finite(bounds: Bounds) -> Callable[[SolveResult], NDArray[np.float64] | None]:
