@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.constants import ZETA
-from regrasp_casadi.final_moves import FinalMoves, decide_status, run_final_moves
+from regrasp_casadi.final_moves import FinalMoves, decide_status, pose_distance, run_final_moves
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
@@ -298,7 +298,8 @@ class _Run:
 
     def repose(self, escape: bool) -> None:
         """One in-grasp reposing (OPT2) towards the method's target: the SVD target pose, the fingers'
-        workspaces, or (`escape`, after iterations without progress) the desired object pose; a
+        workspaces, or (`escape`, after iterations without progress) the desired object pose, then
+        accepted only if it brings the object closer to it (monotone, as the final moves); a
         rejected reposing leaves the object where it is."""
         nlp = self.repose_nlp
         if escape:  # repose towards the desired object pose
@@ -311,7 +312,12 @@ class _Run:
         res = nlp.solve(self.q, self.T_palm_object, self.tips_object(), **target)
         self.timing["opt2"] += res.solve_time
         self.solves["opt2"] += 1
-        if res.success:
+        goal = self.T_palm_object_goal
+        if res.success and escape and (pose_distance(res.T_palm_object, goal, self.obj)
+                                       >= pose_distance(self.T_palm_object, goal, self.obj)):
+            self.failures.append(f"reposing towards the desired pose at step {len(self.steps)} would not "
+                                 f"bring the object closer; the object stays")
+        elif res.success:
             self.q, self.T_palm_object = res.q, res.T_palm_object
             self.add_step("repose", None, res.status, res.solve_time)
         else:  # the object stays where it is

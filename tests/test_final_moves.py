@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -172,3 +173,15 @@ def test_a_planned_regrasp_moves_monotonically_and_converges_only_at_the_pose(bo
     within = position <= options.pose_tol_position and rotation <= options.pose_tol_rotation
     assert plan.status == ("converged" if within else "pose_not_reached"), plan.status_detail
     assert verify(plan, box_shift.hand, box_shift.obj).ok
+
+
+@pytest.mark.parametrize(("fraction", "accepted"), [(-0.2, False), (0.2, True)])
+def test_an_escape_reposing_is_accepted_only_towards_the_desired_pose(box_shift, fraction, accepted):
+    from regrasp_casadi import planner
+
+    run = planner._Run(box_shift.grasp0, box_shift.grasp_goal, PlannerOptions(), planner._DEFAULT_CACHE)
+    T_new = interpolate_pose(run.T_palm_object, run.T_palm_object_goal, fraction)
+    run.svd_nlp = SimpleNamespace(solve=lambda *a, **k: _Result(q=run.q, T_palm_object=T_new))
+    run.repose(escape=True)
+    assert len(run.steps) == (2 if accepted else 1)
+    assert accepted or "would not bring the object closer" in run.failures[-1]
