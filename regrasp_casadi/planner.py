@@ -66,7 +66,7 @@ class PlannerOptions:
     final_move: bool = True
     """Finish with in-grasp moves to the desired object pose (Algorithm 1, last lines; `final_moves`:
     each accepted move brings the object closer to it)."""
-    final_time_budget: float = 30.0
+    final_time_budget: float = 60.0
     """Time the final in-grasp moves may take, s (as many moves as fit; each is bounded by the OPT2
     trust region)."""
     final_pose_tol: float = 5e-4
