@@ -116,21 +116,21 @@ def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, ela
         from regrasp_casadi.viewer import write_html
 
         write_html(plan, html, hand=hand, obj=obj)
-    err = plan.final_error
+    err, (dp, dr) = plan.final_error, plan.final_pose_error
     print(f"plan: {plan.status} after {plan.iterations} iterations, {len(plan.steps)} steps "
           f"({plan.step_counts()}), method {plan.method}")
     if plan.status != "converged" and plan.status_detail:
         print(f"  ({' '.join(plan.status_detail.split())})")
-    print(f"final average contact error: {err * 1e3:.2f} mm; planning time {elapsed:.2f} s")
-    print(f"verify: {'OK' if report.ok else f'FAILED ({len(report.violations)} violations)'}")
+    print(f"final average contact error: {err * 1e3:.2f} mm; object {dp * 1e3:.2f} mm / "
+          f"{math.degrees(dr):.2f}° from the desired pose; planning time {elapsed:.2f} s\n"
+          f"verify: {'OK' if report.ok else f'FAILED ({len(report.violations)} violations)'}")
     for v in report.violations[:3]:
         print(f"  step {v.step}: {v.check} [{v.who}]: {v.message}")
     written = [str(p) for p in (out, html) if p is not None]
     if written:
         print("wrote " + ", ".join(written))
-    if plan.status == "converged" and report.ok:
-        return EXIT_OK
-    return EXIT_INTERRUPTED if plan.status == "interrupted" else EXIT_FAILED
+    ok = plan.status == "converged" and report.ok
+    return EXIT_OK if ok else EXIT_INTERRUPTED if plan.status == "interrupted" else EXIT_FAILED
 
 
 def _load_plan(path: str) -> Plan:

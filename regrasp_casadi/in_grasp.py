@@ -24,6 +24,7 @@ from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
 from regrasp_casadi.constants import K_ORIENT, K_POS
 from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
+from regrasp_casadi.grasp_metrics import contact_slip
 from regrasp_casadi.local_clearance import ClearanceParams, LocalClearance
 from regrasp_casadi.self_collision import SelfCollisionConstraint
 from regrasp_casadi.signed_distance import DEFAULT_TAU
@@ -61,7 +62,8 @@ class InGraspOptions(_solver.NLPOptions):
     tau_hull: float = 0.002
     """Temperature of the smooth distance to the workspace hulls and of the smooth max(0, ·), m."""
     max_slip: float = 5e-4
-    """A result whose tip centres moved more than this relative to the object is rejected, m."""
+    """A result whose contacts moved more than this on the object is rejected, m
+    (`grasp_metrics.contact_slip`: the closest mesh points of the tip centres, as `verify` measures)."""
     clearance_pieces: int = 2
     """Convex pieces in each non-tip sphere's local plane set (`local_clearance.LocalClearance`)."""
     clearance_local_planes: int = 8
@@ -80,7 +82,7 @@ class InGraspResult(_solver.SolveStats):
     T_palm_object: NDArray[np.float64]
     """Object pose after the move, (4, 4)."""
     max_slip: float
-    """Largest displacement of a tip centre relative to the object, m."""
+    """Largest slip of a contact on the object (`grasp_metrics.contact_slip`), m."""
     min_clearance: float
     """Smallest exact distance of a non-tip sphere to the object, m."""
     surface_error: float
@@ -474,7 +476,8 @@ class InGraspNLP:
         surface_error = float(np.max(np.abs(exact[self._k:] - self.hand.tip_radius)))
         q_new = x[: self._n]
         tips_obj = (self.hand.tip_positions(q_new) - T_new[:3, 3]) @ T_new[:3, :3]
-        max_slip = float(np.max(np.linalg.norm(tips_obj - c_tips, axis=1)))
+        max_slip = (float(np.max(contact_slip(self.obj, c_tips, tips_obj)))  # the contacts' motion
+                    if np.all(np.isfinite(tips_obj)) else float("inf"))
         min_clear = float(np.min(exact[: self._k] - self._radii)) if self._k else float("inf")
         # accepted when the exact checks hold, whatever IPOPT's status (e.g. a converged point reported
         # as Search_Direction_Becomes_Too_Small is still a valid reposing)

@@ -15,8 +15,9 @@ or path phase, a duplicate key or a non-UTF-8 file is a `PlanFormatError` naming
 Schema versions: 2 (written) adds `steps[i].path`; files of version 1 (no paths) still load, their
 steps without a path; any other version is a `PlanFormatError` saying which versions are readable.
 
-Only numpy, the standard library, `regrasp_casadi.errors`, `regrasp_casadi.files` and
-`regrasp_casadi.motion` are imported here: no hand, object or CasADi code.
+Only numpy, the standard library, `regrasp_casadi.errors`, `regrasp_casadi.files`,
+`regrasp_casadi.grasp_metrics` and `regrasp_casadi.motion` are imported here: no hand, object or CasADi
+code.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from numpy.typing import NDArray
 
 from regrasp_casadi.errors import PlanFormatError
 from regrasp_casadi.files import atomic_write_text
+from regrasp_casadi.grasp_metrics import pose_error
 from regrasp_casadi.motion import (
     DEFAULT_MAX_JOINT_SPEED,
     DEFAULT_MIN_STEP_DURATION,
@@ -44,19 +46,8 @@ from regrasp_casadi.motion import (
     sample_knots,
 )
 
-__all__ = [
-    "PlanStep",
-    "Plan",
-    "StepKind",
-    "PlanStatus",
-    "PlanMethod",
-    "SCHEMA_VERSION",
-    "READABLE_SCHEMA_VERSIONS",
-    "STEP_KINDS",
-    "PLAN_STATUSES",
-    "PLAN_METHODS",
-    "frozen_array",
-]
+__all__ = ["PlanStep", "Plan", "StepKind", "PlanStatus", "PlanMethod", "SCHEMA_VERSION",
+           "READABLE_SCHEMA_VERSIONS", "STEP_KINDS", "PLAN_STATUSES", "PLAN_METHODS", "frozen_array"]
 
 SCHEMA_VERSION = 2
 """Version of the plan JSON schema written by `Plan.to_dict` (2: steps carry their `path`)."""
@@ -69,11 +60,11 @@ _log = logging.getLogger(__name__)
 StepKind = Literal["initial", "gait", "repose", "final"]
 """What a step does: the initial grasp, a finger gait (OPT1), an in-grasp reposing (OPT2), a final move."""
 
-PlanStatus = Literal[
-    "converged", "iteration_limit", "stalled", "solver_failure", "invalid_input", "interrupted"
-]
-"""Why the planner stopped: every contact within ζ; `max_iters` reached; no progress; a solve failed;
-the input cannot be planned; the user interrupted it (Ctrl-C)."""
+PlanStatus = Literal["converged", "iteration_limit", "stalled", "solver_failure", "invalid_input",
+                     "interrupted", "pose_not_reached"]
+"""Why the planner stopped: every contact within ζ and the object at the desired pose; `max_iters`
+reached; no progress; a solve failed; the input cannot be planned; the user interrupted it (Ctrl-C);
+every contact within ζ but the object not within the pose tolerance of the desired pose."""
 
 PlanMethod = Literal["svd", "sd"]
 """The in-grasp objective: the SVD (Kabsch) pose target or the signed distance to the workspace hulls."""
@@ -404,6 +395,13 @@ class Plan:
             return float("nan")
         return float(np.mean(self.steps[-1].contact_error))
 
+    @property
+    def final_pose_error(self) -> tuple[float, float]:
+        """(position m, rotation rad) of the last step's object pose from `goal_T_palm_object` (nan: no
+        steps); derived from the stored poses, so every plan file, old ones too, has it."""
+        return pose_error(self.steps[-1].T_palm_object, self.goal_T_palm_object) if self.steps else (
+            float("nan"), float("nan"))
+
     def step_counts(self) -> str:
         """Steps by kind, e.g. "1 initial, 26 gait, 6 repose, 1 final" (kinds that occur, in order)."""
         counts = {k: sum(s.kind == k for s in self.steps) for k in STEP_KINDS}
@@ -417,10 +415,10 @@ class Plan:
             f"method: {self.method}, iterations: {self.iterations}, steps: {len(self.steps)} ({kinds})",
         ]
         if self.steps and self.steps[-1].contact_error.size:
-            err = self.steps[-1].contact_error
+            err, (dp, dr) = self.steps[-1].contact_error, self.final_pose_error
             lines.append(
-                f"final contact error: avg {np.mean(err) * 1e3:.2f} mm, max {np.max(err) * 1e3:.2f} mm"
-            )
+                f"final contact error: avg {np.mean(err) * 1e3:.2f} mm, max {np.max(err) * 1e3:.2f} mm; "
+                f"object {dp * 1e3:.2f} mm / {math.degrees(dr):.2f}° from the desired pose")
         paths = [(i, s.path) for i, s in enumerate(self.steps) if s.path is not None]
         if paths:
             flagged = [f"step {i}" for i, p in paths if not p.ok]

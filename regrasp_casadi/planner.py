@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.constants import ZETA
+from regrasp_casadi.final_moves import FinalMoves, decide_status, pose_distance, run_final_moves
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
@@ -26,12 +27,10 @@ from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.solver import NLPCache
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories
-from regrasp_casadi.transforms import rotation_angle
 
 if TYPE_CHECKING:
     from regrasp_casadi.grasp import Grasp
     from regrasp_casadi.hand import Hand
-    from regrasp_casadi.objects import ObjectModel
 
 __all__ = ["PlannerOptions", "plan_regrasp", "gait_pattern", "clear_nlp_cache", "NLPCache"]
 
@@ -65,11 +64,20 @@ class PlannerOptions:
     force-closure margin (`stability.holding_quality`, μ = 0.5) — an answer to the paper's open
     problems of gait order and grasp stability."""
     final_move: bool = True
-    """Finish with in-grasp moves to the desired object pose (Algorithm 1, last lines)."""
-    max_final_moves: int = 6
-    """Largest number of final in-grasp moves (each bounded by the OPT2 trust region)."""
-    final_pose_tol: float = 1e-3
-    """Stop the final moves when the object is this close to the desired pose (m, and rad × 0.1 m)."""
+    """Finish with in-grasp moves to the desired object pose (Algorithm 1, last lines; `final_moves`:
+    each accepted move brings the object closer to it)."""
+    final_time_budget: float = 60.0
+    """Time the final in-grasp moves may take, s (as many moves as fit; each is bounded by the OPT2
+    trust region)."""
+    final_pose_tol: float = 5e-4
+    """Stop the final moves when the object is this close to the desired pose, m
+    (`final_moves.pose_distance`: translation plus rotation angle times the object's radius)."""
+    final_min_gain: float = 2e-5
+    """A final move that brings the object less than this closer to the desired pose ends them, m."""
+    pose_tol_position: float = 2e-3
+    """A "converged" plan's object is within this distance of the desired position, m."""
+    pose_tol_rotation: float = float(np.radians(2.0))
+    """... and within this angle of the desired orientation, rad (2°)."""
     stall_tol: float = 1e-3
     """An iteration makes progress when the largest contact error drops by more than this, m (a gait
     moves a tip up to η = 10 mm: less than 1 mm means the fingers are blocked where they are)."""
@@ -290,7 +298,8 @@ class _Run:
 
     def repose(self, escape: bool) -> None:
         """One in-grasp reposing (OPT2) towards the method's target: the SVD target pose, the fingers'
-        workspaces, or (`escape`, after iterations without progress) the desired object pose; a
+        workspaces, or (`escape`, after iterations without progress) the desired object pose, then
+        accepted only if it brings the object closer to it (monotone, as the final moves); a
         rejected reposing leaves the object where it is."""
         nlp = self.repose_nlp
         if escape:  # repose towards the desired object pose
@@ -303,7 +312,12 @@ class _Run:
         res = nlp.solve(self.q, self.T_palm_object, self.tips_object(), **target)
         self.timing["opt2"] += res.solve_time
         self.solves["opt2"] += 1
-        if res.success:
+        goal = self.T_palm_object_goal
+        if res.success and escape and (pose_distance(res.T_palm_object, goal, self.obj)
+                                       >= pose_distance(self.T_palm_object, goal, self.obj)):
+            self.failures.append(f"reposing towards the desired pose at step {len(self.steps)} would not "
+                                 f"bring the object closer; the object stays")
+        elif res.success:
             self.q, self.T_palm_object = res.q, res.T_palm_object
             self.add_step("repose", None, res.status, res.solve_time)
         else:  # the object stays where it is
@@ -312,28 +326,6 @@ class _Run:
                                  f"{res.max_slip * 1e3:.3f} mm, surface error {res.surface_error * 1e3:.3f} "
                                  f"mm; IPOPT: {res.status})")
             _log.debug("%s; the object stays", self.failures[-1])
-
-    def final_moves(self) -> str:
-        """In-grasp moves (OPT2, SVD form) towards the desired object pose once the contacts are reached;
-        returns a note for the plan's status detail ("" unless a move was rejected)."""
-        o, T_goal = self.options, self.T_palm_object_goal
-        for _ in range(o.max_final_moves):
-            if _pose_distance(self.T_palm_object, T_goal, self.obj) <= o.final_pose_tol:
-                break
-            res = self.svd_nlp.solve(self.q, self.T_palm_object, self.tips_object(), T_target=T_goal)
-            self.timing["opt2"] += res.solve_time
-            self.solves["opt2"] += 1
-            if not res.success:  # the contacts are reached; the object stays where it is
-                return (f"; the final in-grasp move towards the desired pose was rejected by the "
-                        f"exact checks (slip {res.max_slip * 1e3:.2f} mm, clearance "
-                        f"{res.min_clearance * 1e3:.2f} mm; IPOPT: {res.status})")
-            progress_made = (_pose_distance(self.T_palm_object, T_goal, self.obj)
-                             - _pose_distance(res.T_palm_object, T_goal, self.obj))
-            self.q, self.T_palm_object = res.q, res.T_palm_object
-            self.add_step("final", None, res.status, res.solve_time)
-            if progress_made < 1e-4:
-                break
-        return ""
 
 
 def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | None = None,
@@ -355,11 +347,13 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         TypeError: `grasp0` or `grasp_goal` is not a `Grasp` (the message names the argument).
 
     Returns:
-        A `Plan` whose `status` says why it stopped: "converged", "iteration_limit", "stalled" (no
-        progress for `stall_limit` iterations), "solver_failure" (with the step and IPOPT's status in
-        `status_detail`), "interrupted" (Ctrl-C: the current solve finishes, the plan holds the steps
-        so far; a second Ctrl-C raises KeyboardInterrupt) or "invalid_input". A failed solve never
-        raises: the plan ends with the steps so far.
+        A `Plan` whose `status` says why it stopped: "converged" (contacts within ζ and the object
+        within `pose_tol_position` / `pose_tol_rotation` of the desired pose), "pose_not_reached"
+        (contacts within ζ, the object farther: the distance in `status_detail`), "iteration_limit",
+        "stalled" (no progress for `stall_limit` iterations), "solver_failure" (with the step and
+        IPOPT's status in `status_detail`), "interrupted" (Ctrl-C: the current solve finishes, the plan
+        holds the steps so far; a second Ctrl-C raises KeyboardInterrupt) or "invalid_input". A failed
+        solve never raises: the plan ends with the steps so far.
     """
     t_start = time.perf_counter()
     require_grasp(grasp0, "grasp0")
@@ -405,18 +399,12 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
 
 def _finish(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run) -> Plan:
     """The plan of a run whose iterations ended: the final moves if the contacts are reached, then
-    "converged" or "iteration_limit"."""
-    final_note = ""
+    "converged", "pose_not_reached" or "iteration_limit" (`final_moves.decide_status`)."""
+    outcome = FinalMoves("not_run", 0, ())
     if options.final_move and run.largest_error() <= options.zeta:
-        final_note = run.final_moves()
-    err = run.largest_error()
-    if err <= options.zeta:
-        pose_error = _pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj)
-        detail = (f"largest contact error {err * 1e3:.2f} mm ≤ ζ = {options.zeta * 1e3:.1f} mm; object "
-                  f"{pose_error * 1e3:.2f} mm from the desired pose{final_note}")
-        return _make_plan(grasp0, grasp_goal, options, t_start, run, "converged", detail)
-    return _make_plan(grasp0, grasp_goal, options, t_start, run, "iteration_limit",
-                      f"largest contact error {err * 1e3:.2f} mm > ζ after {run.iterations} iterations")
+        outcome = run_final_moves(run, options)
+    status, detail = decide_status(run, options, outcome)
+    return _make_plan(grasp0, grasp_goal, options, t_start, run, status, detail)
 
 
 def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run | None,
@@ -441,12 +429,6 @@ def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_star
     if options.trajectories and len(plan.steps) > 1:
         plan = attach_trajectories(plan, hand, obj, TrajectoryOptions(beta=options.finger_gait.beta))
     return plan
-
-
-def _pose_distance(T_a: NDArray, T_b: NDArray, obj: ObjectModel) -> float:
-    """Pose distance, m: translation plus rotation angle times the object's radius."""
-    radius = 0.5 * float(np.linalg.norm(obj.mesh.extents))
-    return float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]) + radius * rotation_angle(T_a[:3, :3], T_b[:3, :3]))
 
 
 def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> str:  # noqa: PLR0911

@@ -204,16 +204,26 @@ def _load_hand(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> Hand:
 
 def _load_model(ctx: _Ctx, m: dict, base_dir: pathlib.Path) -> Hand:
     """``hand: {model: NAME}`` (a shipped model) or ``{model: FOLDER}`` (a model folder, relative to the
-    problem file when not absolute)."""
+    problem file when not absolute), optionally ``fingers: [index, middle, thumb]``: the fingers that
+    hold (a subset of the model's, in that order); the others stay collision bodies only."""
     from regrasp_casadi.hand import Hand
 
-    if not isinstance(m["model"], str) or "fingers" in m:
-        raise ctx.error("hand.model", f"expected a model name or folder (no 'fingers'), got {m!r}")
+    if not isinstance(m["model"], str):
+        raise ctx.error("hand.model", f"expected a model name or folder, got {m!r}")
     name = m["model"]
     if "/" in name or "\\" in name or name.startswith("."):
         folder = pathlib.Path(name).expanduser()
-        return Hand.from_model(folder if folder.is_absolute() else base_dir / folder)
-    return Hand.from_model(name)
+        hand = Hand.from_model(folder if folder.is_absolute() else base_dir / folder)
+    else:
+        hand = Hand.from_model(name)
+    fingers = m.get("fingers")
+    if fingers is None:
+        return hand
+    if not (isinstance(fingers, list) and fingers and all(f in hand.fingers for f in fingers)
+            and len(set(fingers)) == len(fingers)):
+        raise ctx.error("hand.fingers", f"expected a list of distinct fingers of {hand.name} "
+                                        f"({', '.join(hand.fingers)}), got {fingers!r}")
+    return Hand.from_urdf(hand.urdf_path, {f: hand.tip_links[f] for f in fingers})
 
 
 def _load_object(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> ObjectModel:

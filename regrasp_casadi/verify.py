@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi import constants
+from regrasp_casadi.grasp_metrics import slip_between
 from regrasp_casadi.self_collision_checks import check_self_collision, check_self_collision_mesh
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
@@ -401,7 +402,7 @@ def check_slip(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
     if k == 0 or step.kind == "gait":
         return []
     closest, tol = ctx.exact.p_object_closest, ctx.tol.max_slip
-    slip = np.linalg.norm(closest[k] - closest[k - 1], axis=1)
+    slip = slip_between(closest[k - 1], closest[k])  # the contacts (closest mesh points) moved on the object
     ctx.metrics["max_slip"] = max(ctx.metrics["max_slip"], float(np.max(slip)))
     return [Finding(f, sl, tol, f"{f} contact slipped {sl * 1e3:.2f} mm on the object during {step.kind}")
             for f, sl in zip(ctx.fingers, slip, strict=True) if sl > tol]

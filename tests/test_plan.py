@@ -250,7 +250,7 @@ def test_final_error_and_summary_from_hand_set_errors():
 def test_vocabularies_are_the_literal_types():
     # every status plan_regrasp returns, plus "interrupted" (Ctrl-C), in a fixed order
     assert PLAN_STATUSES == ("converged", "iteration_limit", "stalled", "solver_failure", "invalid_input",
-                             "interrupted")
+                             "interrupted", "pose_not_reached")
     assert STEP_KINDS == ("initial", "gait", "repose", "final")
     assert PLAN_METHODS == ("svd", "sd")
 
@@ -304,7 +304,7 @@ def _edit(doc: dict, keys: tuple, value) -> dict:
         (("plan_version",), 2, r"plan: unknown field 'plan_version' \(known: steps, "),
         (("steps", 3, "velocity"), [0.0], r"steps\[3\]: unknown field 'velocity' \(known: kind, finger, "),
         (("status",), "done", r"plan\.status: expected one of converged, iteration_limit, stalled, "
-                              r"solver_failure, invalid_input, interrupted, found 'done'"),
+                              r"solver_failure, invalid_input, interrupted, pose_not_reached, found 'done'"),
         (("status",), 3, r"plan\.status: expected str, found int 3"),
         (("method",), "pose", r"plan\.method: expected one of svd, sd, found 'pose'"),
         (("steps", 2, "kind"), "slide", r"steps\[2\]\.kind: expected one of initial, gait, repose, final, "
@@ -403,4 +403,5 @@ def test_importing_and_using_plan_loads_no_model_code():
                   "regrasp_casadi.problem", "regrasp_casadi.verify"}
     assert loaded & model_code == set()
     assert {m for m in loaded if m.startswith("regrasp_casadi.")} == {
-        "regrasp_casadi.errors", "regrasp_casadi.files", "regrasp_casadi.motion", "regrasp_casadi.plan"}
+        "regrasp_casadi.errors", "regrasp_casadi.files", "regrasp_casadi.grasp_metrics",
+        "regrasp_casadi.motion", "regrasp_casadi.plan"}

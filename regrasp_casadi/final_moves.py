@@ -1,0 +1,210 @@
+"""The planner's last phase (Algorithm 1, last lines): in-grasp moves (OPT2, SVD form) from the grasp
+whose contacts are within ζ to the desired object pose, and the plan's status decision.
+
+The moves are monotone: a move is accepted only when it brings the object closer to the desired pose
+(`pose_distance`, m) and keeps every contact within ζ of its goal; the loop runs until the object is
+within `final_pose_tol`, a move is rejected or gains less than `final_min_gain`, or `final_time_budget`
+seconds have passed. A plan is "converged" only when its contacts are within ζ *and* its object is within
+`pose_tol_position` / `pose_tol_rotation` of the desired pose (the paper's desired grasp
+G_d = (X_d, o_d) has both); contacts within ζ with the object elsewhere is "pose_not_reached".
+
+    >>> outcome = run_final_moves(run, options)      # run: the planner's `_Run`
+    >>> status, detail = decide_status(run, options, outcome)
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from regrasp_casadi.grasp_metrics import pose_error
+from regrasp_casadi.transforms import exp_so3, log_SO3, make_T
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.hand import Hand
+    from regrasp_casadi.in_grasp import InGraspNLP
+    from regrasp_casadi.objects import ObjectModel
+    from regrasp_casadi.plan import PlanStep
+    from regrasp_casadi.planner import PlannerOptions
+
+__all__ = ["FinalMoves", "run_final_moves", "decide_status", "pose_distance"]
+
+FinalStop = Literal["reached", "small_gain", "no_gain", "rejected", "contact_drift", "time_budget",
+                    "not_run"]
+"""Why the final moves ended: the object is within `final_pose_tol`; the last move gained less than
+`final_min_gain` (accepted) or nothing (not accepted); OPT2's exact checks rejected the move; the move
+would take a contact farther than ζ from its goal (not accepted); the time budget ran out; not run."""
+
+
+class FinalMoveRun(Protocol):
+    """What the final moves read and change of a planning run (`planner._Run`)."""
+
+    hand: Hand
+    q: NDArray
+    T_palm_object: NDArray
+    T_palm_object_goal: NDArray
+    goal_contacts: NDArray
+    obj: ObjectModel
+    svd_nlp: InGraspNLP
+    timing: dict[str, float]
+    solves: dict[str, int]
+    steps: list[PlanStep]
+    iterations: int
+
+    def tips_object(self) -> NDArray: ...
+
+    def add_step(self, kind: str, finger: str | None, status: str, solve_time: float) -> PlanStep: ...
+
+    def largest_error(self) -> float: ...
+
+
+@dataclass(frozen=True)
+class FinalMoves:
+    """The outcome of the final moves."""
+
+    stop: FinalStop
+    """Why they ended (`FinalStop`)."""
+    moves: int
+    """Accepted moves."""
+    distances: tuple[float, ...]
+    """Pose distance (m, `pose_distance`) before the first move and after each accepted one."""
+    note: str = ""
+    """Why the last move was not accepted, for the status detail ("" when every move was)."""
+
+
+def pose_distance(T_a: NDArray, T_b: NDArray, obj: ObjectModel) -> float:
+    """Pose distance, m: translation plus rotation angle times the object's radius (half its bounding-box
+    diagonal)."""
+    radius = 0.5 * float(np.linalg.norm(obj.mesh.extents))
+    position, rotation = pose_error(T_a, T_b)
+    return position + radius * rotation
+
+
+def run_final_moves(run: FinalMoveRun, options: PlannerOptions) -> FinalMoves:
+    """In-grasp moves towards `run.T_palm_object_goal` (see the module docstring); each accepted move is
+    a "final" step of `run`.
+
+    OPT2 lands the object a fraction ρ of the way to its target (E_des against the relaxed rigidity), so
+    each move is asked for a target stretched beyond the desired pose, by s = 1/ρ measured on the last
+    move, separately for translation and rotation (`_Stretch`); a move that would not bring the object
+    closer is not accepted and retried with half the stretch, then ends the moves ("no_gain")."""
+    t_start, T_goal, zeta = time.perf_counter(), run.T_palm_object_goal, options.zeta
+    distances = [pose_distance(run.T_palm_object, T_goal, run.obj)]
+    stretch = _Stretch()
+    while True:
+        if distances[-1] <= options.final_pose_tol:
+            return FinalMoves("reached", len(distances) - 1, tuple(distances))
+        if time.perf_counter() - t_start >= options.final_time_budget:
+            return FinalMoves("time_budget", len(distances) - 1, tuple(distances))
+        T_target = stretch.target(run.T_palm_object, T_goal)
+        res = run.svd_nlp.solve(run.q, run.T_palm_object, run.tips_object(), T_target=T_target)
+        run.timing["opt2"] += res.solve_time
+        run.solves["opt2"] += 1
+        stop, note = _judge(run, res, distances[-1], zeta)
+        if stop is not None and stretch.shrink():
+            continue  # retried with half the stretch
+        if stop is not None:
+            return FinalMoves(stop, len(distances) - 1, tuple(distances), note)
+        stretch.update(run.T_palm_object, T_target, res.T_palm_object)
+        run.q, run.T_palm_object = res.q, res.T_palm_object
+        run.add_step("final", None, res.status, res.solve_time)
+        distances.append(pose_distance(run.T_palm_object, T_goal, run.obj))
+        if distances[-2] - distances[-1] < options.final_min_gain:
+            return FinalMoves("small_gain", len(distances) - 1, tuple(distances))
+
+
+class _Stretch:
+    """How far beyond the desired pose the next final move aims: factors s_t (translation) and s_r
+    (rotation) ≥ 1 on the remaining displacement, from the response of the last accepted move."""
+
+    MAX = 50.0
+    """Largest stretch."""
+    DAMPING = 1.0
+    """s = DAMPING/ρ (measured on the shipped bottle problem: 0.6 stalled a move that 1.0 did not)."""
+    MAX_ANGLE = np.pi / 3
+    """Largest rotation from the current pose a stretched target may ask, rad (no wrap-around)."""
+
+    def __init__(self, radius: float = 0.1) -> None:
+        self.s_t = self.s_r = 1.0
+        self.radius = radius
+
+    def target(self, T_now: NDArray, T_goal: NDArray) -> NDArray:
+        """The stretched target pose (4, 4), palm frame."""
+        w = log_SO3(T_now[:3, :3].T @ T_goal[:3, :3])
+        s_r = min(self.s_r, self.MAX_ANGLE / max(float(np.linalg.norm(w)), 1e-12))
+        t = T_now[:3, 3] + self.s_t * (T_goal[:3, 3] - T_now[:3, 3])
+        return make_T(T_now[:3, :3] @ exp_so3(s_r * w), t)
+
+    def update(self, T_before: NDArray, T_target: NDArray, T_after: NDArray) -> None:
+        """Set s = 1/ρ per component, ρ the fraction of the requested displacement the move achieved."""
+        asked_t, got_t = T_target[:3, 3] - T_before[:3, 3], T_after[:3, 3] - T_before[:3, 3]
+        asked_r = log_SO3(T_before[:3, :3].T @ T_target[:3, :3])
+        got_r = log_SO3(T_before[:3, :3].T @ T_after[:3, :3])
+        r = self.radius
+        self.s_t = self.s_r = self._next(self.s_t, np.concatenate([asked_t, r * asked_r]),
+                                         np.concatenate([got_t, r * got_r]))
+
+    def _next(self, s: float, asked: NDArray, got: NDArray) -> float:
+        """1/ρ (clipped to [1, MAX]); `s` unchanged when nothing was asked."""
+        size = float(asked @ asked)
+        if size < 1e-16:  # nothing asked (that component is already there): keep the factor
+            return s
+        rho = float(got @ asked) / size  # achieved fraction of the request
+        return float(np.clip(self.DAMPING / rho, 1.0, self.MAX)) if rho > 0 else 1.0
+
+    def shrink(self) -> bool:
+        """Halve the stretch after a move that could not be accepted; False if it is 1 already."""
+        if self.s_t <= 1.0 and self.s_r <= 1.0:
+            return False
+        self.s_t, self.s_r = max(1.0, 0.5 * self.s_t), max(1.0, 0.5 * self.s_r)
+        return True
+
+
+def _judge(run: FinalMoveRun, res, distance: float, zeta: float) -> tuple[FinalStop | None, str]:
+    """Whether OPT2's result `res` may be accepted: (None, "") if so, else why not."""
+    if not res.success:
+        return "rejected", (f"the final in-grasp move was rejected by the exact checks (slip "
+                            f"{res.max_slip * 1e3:.2f} mm, clearance {res.min_clearance * 1e3:.2f} mm; "
+                            f"IPOPT: {res.status})")
+    after = pose_distance(res.T_palm_object, run.T_palm_object_goal, run.obj)
+    if after >= distance:
+        return "no_gain", (f"the next final move would not bring the object closer ({after * 1e3:.2f} mm "
+                           f"≥ {distance * 1e3:.2f} mm)")
+    tips = (run.hand.tip_positions(res.q) - res.T_palm_object[:3, 3]) @ res.T_palm_object[:3, :3]
+    contacts, _ = run.obj.closest_points(tips)
+    worst = float(np.max(np.linalg.norm(contacts - run.goal_contacts, axis=1)))
+    if worst > zeta:
+        return "contact_drift", (f"the next final move would take a contact {worst * 1e3:.2f} mm from its "
+                                 f"goal (> ζ)")
+    return None, ""
+
+
+def decide_status(run: FinalMoveRun, options: PlannerOptions, outcome: FinalMoves) -> tuple[str, str]:
+    """The plan's (status, detail) once the iterations ended: "converged" (contacts within ζ and the
+    object within the pose tolerance), "pose_not_reached" (contacts within ζ, the object not) or
+    "iteration_limit" (contacts not within ζ after `max_iters`)."""
+    err = run.largest_error()
+    if err > options.zeta:
+        return "iteration_limit", (f"largest contact error {err * 1e3:.2f} mm > ζ after "
+                                   f"{run.iterations} iterations")
+    position, rotation = pose_error(run.T_palm_object, run.T_palm_object_goal)
+    pose = (f"object {position * 1e3:.2f} mm / {np.degrees(rotation):.2f}° from the desired pose "
+            f"(tolerance {options.pose_tol_position * 1e3:.1f} mm / "
+            f"{np.degrees(options.pose_tol_rotation):.1f}°)")
+    moves = _describe(outcome)
+    contacts = f"largest contact error {err * 1e3:.2f} mm ≤ ζ = {options.zeta * 1e3:.1f} mm"
+    if position <= options.pose_tol_position and rotation <= options.pose_tol_rotation:
+        return "converged", f"{contacts}; {pose}{moves}"
+    return "pose_not_reached", f"{contacts} but the {pose}{moves}"
+
+
+def _describe(outcome: FinalMoves) -> str:
+    """The final moves' part of the status detail."""
+    if outcome.stop == "not_run":
+        return "; no final moves (final_move off)"
+    text = f"; {outcome.moves} final moves, stopped: {outcome.stop.replace('_', ' ')}"
+    return text + (f" ({outcome.note})" if outcome.note else "")

@@ -1,0 +1,187 @@
+"""The planner's final in-grasp moves (`final_moves`): monotone towards the desired pose, stopped by the
+pose tolerance, a small gain or the time budget; "converged" only with the object at the desired pose."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from regrasp_casadi.final_moves import pose_distance, run_final_moves
+from regrasp_casadi.grasp import Grasp
+from regrasp_casadi.grasp_metrics import pose_error
+from regrasp_casadi.planner import PlannerOptions, plan_regrasp
+from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.transforms import interpolate_pose, make_T, rot_axis_angle, transform_points
+from regrasp_casadi.verify import verify
+
+BOX_SHIFT = Path(__file__).resolve().parents[1] / "problems" / "box_shift.yaml"
+
+
+@pytest.fixture(scope="module")
+def box_shift():
+    return RegraspProblem.load(BOX_SHIFT)
+
+
+# ------------------------------------------------------------------- the loop on a scripted OPT2
+@dataclass
+class _Result:
+    q: np.ndarray
+    T_palm_object: np.ndarray
+    success: bool = True
+    status: str = "Solve_Succeeded"
+    solve_time: float = 0.0
+    max_slip: float = 0.0
+    min_clearance: float = 0.01
+
+
+class _Mesh:
+    extents = np.array([0.1, 0.0, 0.0])  # radius 0.05 m in `pose_distance`
+
+
+class _PointObject:
+    """Contacts are the tip centres themselves (closest points of points on the 'surface')."""
+
+    mesh = _Mesh()
+
+    def closest_points(self, p):
+        p = np.asarray(p, float).reshape(-1, 3)
+        return p, np.zeros(len(p))
+
+
+class _TipHand:
+    """q holds the tip centres, palm frame (m × 3 values)."""
+
+    def tip_positions(self, q):
+        return np.asarray(q, float).reshape(-1, 3)
+
+
+class _ScriptedOPT2:
+    """Moves the object a fraction `rho` of the way to the target it is given (at most 1 cm and 0.1 rad),
+    except on the calls in
+    `bad`, where it moves it away from the desired pose (a result the loop must not accept)."""
+
+    def __init__(self, tips_object, T_goal, rho=0.3, bad=()):
+        self.tips_object, self.T_goal, self.rho, self.bad, self.calls = tips_object, T_goal, rho, set(bad), 0
+
+    def solve(self, q, T_palm_object, p_object_tips, *, T_target):
+        self.calls += 1
+        far = interpolate_pose(T_palm_object, self.T_goal, -0.5)  # away from the desired pose
+        position, rotation = pose_error(T_palm_object, T_target)  # a trust region of 1 cm and 0.1 rad:
+        frac = min(self.rho, 0.01 / max(position, 1e-12), 0.1 / max(rotation, 1e-12))
+        T_new = far if self.calls in self.bad else interpolate_pose(T_palm_object, T_target, frac)
+        return _Result(q=transform_points(T_new, self.tips_object).ravel(), T_palm_object=T_new)
+
+
+class _Run:
+    def __init__(self, T0, T_goal, **nlp):
+        self.tips = np.array([[0.02, 0.0, 0.0], [-0.02, 0.0, 0.0], [0.0, 0.03, 0.0]])
+        self.hand, self.obj = _TipHand(), _PointObject()
+        self.T_palm_object, self.T_palm_object_goal = T0, T_goal
+        self.q = transform_points(T0, self.tips).ravel()
+        self.goal_contacts = self.tips
+        self.svd_nlp = _ScriptedOPT2(self.tips, T_goal, **nlp)
+        self.timing, self.solves, self.steps, self.iterations = {"opt2": 0.0}, {"opt2": 0}, [], 0
+
+    def tips_object(self):
+        return transform_points(np.linalg.inv(self.T_palm_object), self.hand.tip_positions(self.q))
+
+    def add_step(self, kind, finger, status, solve_time):
+        self.steps.append(np.array(self.T_palm_object))
+
+    def largest_error(self):
+        return 0.0
+
+
+T0 = make_T(np.eye(3), [0.1, 0.0, 0.05])
+T_GOAL = make_T(rot_axis_angle([0.0, 0.0, 1.0], 0.4), [0.13, 0.04, 0.05])
+
+
+@pytest.mark.parametrize("bad", [(), (2,), (3, 4)])
+def test_every_accepted_final_move_reduces_the_pose_distance(bad):
+    run = _Run(T0, T_GOAL, bad=bad)
+    out = run_final_moves(run, PlannerOptions())
+    d = [pose_distance(T, T_GOAL, run.obj) for T in [T0, *run.steps]]
+    assert out.stop == "reached" and d[-1] <= PlannerOptions().final_pose_tol
+    assert np.all(np.diff(d) < 0), d  # monotone, the planted moves away were not accepted
+    assert np.allclose(d, out.distances)
+    assert run.svd_nlp.calls >= out.moves + len(bad)  # a planted (or overshooting) move: one more solve
+
+
+def test_the_stretched_targets_need_fewer_moves_than_plain_ones():
+    run = _Run(T0, T_GOAL, rho=0.05)
+    out = run_final_moves(run, PlannerOptions())
+    # plain targets (the desired pose) would need log(tol / d0) / log(1 − ρ) moves
+    plain = np.log(PlannerOptions().final_pose_tol / out.distances[0]) / np.log(1 - 0.05)
+    assert out.stop == "reached" and out.moves < 0.5 * plain
+
+
+def test_a_move_that_gains_less_than_the_threshold_ends_the_moves():
+    run = _Run(T0, T_GOAL, rho=1e-5)
+    out = run_final_moves(run, PlannerOptions())
+    assert out.stop == "small_gain" and out.moves == 1 and len(run.steps) == 1
+
+
+def test_a_move_away_from_a_plain_target_ends_the_moves_unaccepted():
+    run = _Run(T0, T_GOAL, bad=(1,))
+    out = run_final_moves(run, PlannerOptions())
+    assert out.stop == "no_gain" and out.moves == 0 and run.steps == [] and out.note
+
+
+def test_no_time_budget_no_move():
+    run = _Run(T0, T_GOAL)
+    out = run_final_moves(run, PlannerOptions(final_time_budget=0.0))
+    assert out.stop == "time_budget" and run.svd_nlp.calls == 0
+
+
+# ------------------------------------------------------------------------- the planner's status
+def _goal_at(problem, T_goal) -> Grasp:
+    g0 = problem.grasp0
+    return Grasp.from_contacts(g0.hand, g0.obj, g0.contacts_object, T_goal)
+
+
+@pytest.mark.parametrize("options", [{"final_move": False}, {"final_time_budget": 0.0}])
+def test_contacts_reached_pose_not_is_pose_not_reached(box_shift, options):
+    g0 = box_shift.grasp0
+    T_goal = np.array(g0.T_palm_object)
+    T_goal[:3, 3] += [0.0, 0.05, 0.0]  # the contacts are the start ones: within ζ; the object 5 cm off
+    plan = plan_regrasp(g0, _goal_at(box_shift, T_goal), trajectories=False, **options)
+    assert plan.status == "pose_not_reached", plan.status_detail
+    assert "50.00 mm / 0.00°" in plan.status_detail
+    assert plan.final_pose_error == pytest.approx((0.05, 0.0), abs=1e-9)
+    assert verify(plan, box_shift.hand, box_shift.obj).ok
+
+
+def test_at_the_desired_pose_is_converged_without_moves(box_shift):
+    g0 = box_shift.grasp0
+    plan = plan_regrasp(g0, _goal_at(box_shift, g0.T_palm_object), trajectories=False)
+    assert plan.status == "converged" and [s.kind for s in plan.steps] == ["initial"]
+    assert "0 final moves, stopped: reached" in plan.status_detail
+
+
+def test_a_planned_regrasp_moves_monotonically_and_converges_only_at_the_pose(box_shift):
+    options = PlannerOptions(trajectories=False)
+    plan = plan_regrasp(box_shift.grasp0, box_shift.grasp_goal, options=options)
+    finals = [s for s in plan.steps if s.kind == "final"]
+    d = [pose_distance(s.T_palm_object, plan.goal_T_palm_object, box_shift.obj)
+         for s in [plan.steps[len(plan.steps) - len(finals) - 1], *finals]]
+    assert finals and np.all(np.diff(d) < 0), d
+    position, rotation = plan.final_pose_error
+    within = position <= options.pose_tol_position and rotation <= options.pose_tol_rotation
+    assert plan.status == ("converged" if within else "pose_not_reached"), plan.status_detail
+    assert verify(plan, box_shift.hand, box_shift.obj).ok
+
+
+@pytest.mark.parametrize(("fraction", "accepted"), [(-0.2, False), (0.2, True)])
+def test_an_escape_reposing_is_accepted_only_towards_the_desired_pose(box_shift, fraction, accepted):
+    from regrasp_casadi import planner
+
+    run = planner._Run(box_shift.grasp0, box_shift.grasp_goal, PlannerOptions(), planner._DEFAULT_CACHE)
+    T_new = interpolate_pose(run.T_palm_object, run.T_palm_object_goal, fraction)
+    run.svd_nlp = SimpleNamespace(solve=lambda *a, **k: _Result(q=run.q, T_palm_object=T_new))
+    run.repose(escape=True)
+    assert len(run.steps) == (2 if accepted else 1)
+    assert accepted or "would not bring the object closer" in run.failures[-1]
