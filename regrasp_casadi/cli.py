@@ -82,12 +82,17 @@ _EPILOG = """exit codes:
 
 
 # ---------------------------------------------------------------------------------------------- helpers
-def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool) -> Plan:
+def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool,
+              stability: str | None = None) -> Plan:
     from regrasp_casadi.planner import plan_regrasp
 
     kwargs = {"method": method}
     if max_iters is not None:
         kwargs["max_iters"] = max_iters
+    if stability is not None:
+        kwargs["stability"] = stability
+    if problem.object_mass is not None:
+        kwargs["object_mass"] = problem.object_mass
     n_max = max_iters if max_iters is not None else 50
     with progress_bar("planning", show_progress, total=n_max) as bar:
         plan = plan_regrasp(problem.grasp0, problem.grasp_goal, progress=plan_progress(bar), **kwargs)
@@ -187,7 +192,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     problem = RegraspProblem.load(args.problem)
     t0 = time.perf_counter()
     progress = progress_enabled(args)
-    plan = _run_plan(problem, args.method, args.max_iters, progress)
+    plan = _run_plan(problem, args.method, args.max_iters, progress, args.stability)
     code = _finish_plan(plan, problem.hand, problem.obj, out, html, time.perf_counter() - t0, progress)
     if args.view:
         _view_live(plan, problem.hand, problem.obj, args.host)
@@ -495,6 +500,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("problem", metavar="PROBLEM.yaml", help="regrasp problem file (YAML)")
     sp.add_argument("--method", choices=("svd", "sd"), default="svd",
                     help="in-grasp objective E_des: svd (Kabsch pose) or sd (workspace distance)")
+    sp.add_argument("--stability", choices=("force_closure", "gravity", "none"), default="force_closure",
+                    help="certificate every step must have: force closure of the holding fingers (default), "
+                         "gravity hold of the object's weight (palm -z), or none (the paper's planner)")
     sp.add_argument("--out", default="plan.json", metavar="PLAN.json", help="plan file to write")
     sp.add_argument("--html", metavar="REPLAY.html", help="also write a self-contained HTML replay")
     sp.add_argument("--view", action="store_true", help="open the live viewer after planning")

@@ -66,8 +66,9 @@ READABLE_SCHEMA_VERSIONS = (1, 2)
 
 _log = logging.getLogger(__name__)
 
-StepKind = Literal["initial", "gait", "repose", "final"]
-"""What a step does: the initial grasp, a finger gait (OPT1), an in-grasp reposing (OPT2), a final move."""
+StepKind = Literal["initial", "gait", "repose", "final", "slide"]
+"""What a step does: the initial grasp, a finger gait (OPT1), an in-grasp reposing (OPT2), a final move,
+or a slide (one finger moves with its tip on the surface, the rest still: the paper's assumption 5)."""
 
 PlanStatus = Literal[
     "converged", "iteration_limit", "stalled", "solver_failure", "invalid_input", "interrupted"
@@ -142,6 +143,9 @@ class PlanStep:
     path: StepPath | None = None
     """The motion from the previous step to this one (None: the initial step, a plan of schema version
     1, or a plan made without trajectories; `Plan.sample` then moves linearly between the steps)."""
+    certificate: dict | None = None
+    """The stability certificate of the step's holding set (`certificates.Certificate.to_dict()`), None
+    when planned without one (stability "none"); written to the file only when set."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", frozen_array(self.q, (None,)))
@@ -162,7 +166,7 @@ class PlanStep:
             PlanFormatError: `kind` is not one of `STEP_KINDS` (the file could not be read back).
         """
         _check_choice(self.kind, STEP_KINDS, f"{where}.kind")
-        return {
+        d = {
             "kind": self.kind,
             "finger": self.finger,
             "q": self.q.tolist(),
@@ -173,6 +177,7 @@ class PlanStep:
             "solve_time": self.solve_time,
             "path": None if self.path is None else _path_to_dict(self.path, f"{where}.path"),
         }
+        return d if self.certificate is None else {**d, "certificate": dict(self.certificate)}
 
     @classmethod
     def from_dict(cls, d: Any, where: str = "step", schema_version: int = SCHEMA_VERSION) -> PlanStep:
@@ -199,6 +204,7 @@ class PlanStep:
             solver_status=_get(d, "solver_status", where, str),
             solve_time=_get_float(d, "solve_time", where),
             path=path,
+            certificate=_get_certificate(d, where),
         )
         if path is not None and path.q.shape[1] != step.q.shape[0]:
             raise PlanFormatError(f"{where}.path.q: expected {step.q.shape[0]} joints per knot (as "
@@ -208,6 +214,17 @@ class PlanStep:
 
 _STEP_FIELDS = tuple(f.name for f in dataclasses.fields(PlanStep))
 _PATH_FIELDS = tuple(f.name for f in dataclasses.fields(StepPath))
+
+
+def _get_certificate(d: dict, where: str) -> dict | None:
+    """The optional step certificate (absent or null: None): a mapping with a known kind and a bool ok."""
+    if d.get("certificate") is None:
+        return None
+    w = f"{where}.certificate"
+    c = _require_mapping(d["certificate"], w, ("kind", "ok", "margin", "forces", "detail"))
+    _check_choice(c.get("kind"), ("force_closure", "gravity"), f"{w}.kind")
+    _get(c, "ok", w, bool)
+    return dict(c)
 
 
 def _path_to_dict(path: StepPath, where: str) -> dict[str, Any]:
