@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
-import math
 import os
 import runpy
 import signal
@@ -42,6 +41,8 @@ from regrasp_casadi.cli_tools import (
     Parser,
     check_host,
     check_output,
+    finite_float,
+    finite_positive_float,
     found_progress,
     non_negative_float,
     non_negative_int,
@@ -91,7 +92,7 @@ def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool,
         kwargs["max_iters"] = max_iters
     if stability is not None:
         kwargs["stability"] = stability
-    if problem.object_mass is not None:
+    if getattr(problem, "object_mass", None) is not None:
         kwargs["object_mass"] = problem.object_mass
     n_max = max_iters if max_iters is not None else 50
     with progress_bar("planning", show_progress, total=n_max) as bar:
@@ -396,25 +397,6 @@ def _add_host(parser: argparse.ArgumentParser) -> None:
                              "0.0.0.0 opens it to the network")
 
 
-def _finite(text: str) -> float:
-    """argparse type: a finite number."""
-    try:
-        x = float(text)
-    except ValueError:
-        x = float("nan")
-    if not math.isfinite(x):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return x
-
-
-def _positive(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    x = _finite(text)
-    if x <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return x
-
-
 def _add_verify_arguments(sp: argparse.ArgumentParser) -> None:
     """`regrasp verify PLAN.json [--all]` and verify's tolerances in mm (`_VERIFY_TOLERANCES_MM`)."""
     sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
@@ -422,15 +404,15 @@ def _add_verify_arguments(sp: argparse.ArgumentParser) -> None:
     sp.description = (f"{sp.description}.\nverify judges with its own tolerances (the flags below); the "
                       "options recorded in the plan\n(its zeta, eta, ...) are reported, never obeyed.")
     judged = "(default: verify's own)"
-    sp.add_argument("--zeta", type=_positive, metavar="MM",
+    sp.add_argument("--zeta", type=finite_positive_float, metavar="MM",
                     help=f"largest final contact error a 'converged' plan may have, mm {judged}")
-    sp.add_argument("--eta", type=_positive, metavar="MM",
+    sp.add_argument("--eta", type=finite_positive_float, metavar="MM",
                     help=f"gait step bound on a fingertip, mm {judged}")
-    sp.add_argument("--surface-tol", type=_positive, metavar="MM",
+    sp.add_argument("--surface-tol", type=finite_positive_float, metavar="MM",
                     help=f"allowed fingertip distance from the surface, mm {judged}")
-    sp.add_argument("--max-slip", type=_positive, metavar="MM",
+    sp.add_argument("--max-slip", type=finite_positive_float, metavar="MM",
                     help=f"allowed contact slip during reposing, mm {judged}")
-    sp.add_argument("--min-clearance", type=_finite, metavar="MM",
+    sp.add_argument("--min-clearance", type=finite_float, metavar="MM",
                     help=f"required clearance of the non-tip collision spheres, mm {judged}")
     sp.set_defaults(func=cmd_verify)
 
@@ -439,7 +421,7 @@ def _add_simulate_parser(add) -> None:
     """The `simulate` subcommand (``add(name, help)`` makes a subparser)."""
     sp = add("simulate", "execute a plan in physics (MuJoCo) and report whether the object is held")
     sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
-    sp.add_argument("--gravity", type=_finite, nargs=3, metavar=("X", "Y", "Z"),
+    sp.add_argument("--gravity", type=finite_float, nargs=3, metavar=("X", "Y", "Z"),
                     help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81)")
     sp.add_argument("--json", metavar="REPORT.json", help="write the simulation report as JSON")
     sp.set_defaults(func=cmd_simulate)

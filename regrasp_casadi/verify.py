@@ -51,12 +51,15 @@ from numpy.typing import NDArray
 from regrasp_casadi import constants
 from regrasp_casadi.certificates import MAX_NORMAL_FORCE
 from regrasp_casadi.self_collision_checks import check_self_collision, check_self_collision_mesh
-from regrasp_casadi.stability import holding_quality, torque_reference
+from regrasp_casadi.stability import torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
+from regrasp_casadi.verify_report import VerifyReport, Violation
 from regrasp_casadi.verify_stability import (
     StabilitySetting,
     check_slide_path,
     check_unstable_gait,
+    record_holding_quality,
+    stability_metrics,
     stability_setting,
 )
 
@@ -81,93 +84,6 @@ DEFAULT_ETA = constants.ETA
 
 DEFAULT_ZETA = constants.ZETA
 """Convergence threshold verify judges by unless told otherwise (DESIGN.md: 6 mm), m."""
-
-
-
-@dataclass(frozen=True)
-class Violation:
-    """One failed check."""
-
-    step: int
-    """Index into `plan.steps` (-1: the plan as a whole)."""
-    check: str
-    """Which check failed (one of `CHECKS`)."""
-    who: str
-    """The joint, finger or collision-sphere label concerned ("" for the whole step)."""
-    amount: float
-    """The measured value (m or rad; for clearance the signed clearance, negative = penetration)."""
-    limit: float
-    """The bound it violates (same unit)."""
-    message: str
-    """Readable explanation."""
-
-
-@dataclass(frozen=True)
-class VerifyReport:
-    """Result of `verify`: `ok` is True iff there is no violation."""
-
-    ok: bool
-    """True iff `violations` is empty."""
-    violations: tuple[Violation, ...]
-    """Every failed check, in step order (within a step, in `CHECK_TABLE` order)."""
-    metrics: dict[str, Any]
-    """Figures of the plan: "min_clearance" (m) and "min_clearance_at" ({"step", "who"}), the same for
-    self-collision ("min_self_clearance", "min_self_clearance_at", sphere model), "max_mesh_penetration"
-    (m) and "mesh_check" (what the mesh check read, or why it was skipped),
-    "max_surface_error", "max_gait_step", "max_slip", "final_avg_error", "final_max_error" (m, exact),
-    "n_steps", "max_slide_path_error" (m), "min_holding_quality" (least Ferrari–Canny margin of a gait's
-    holding fingers, `stability.holding_quality`; NaN without gaits), "min_holding_quality_at",
-    "unstable_gaits"; the stability check's "stability" (kind), "stability_checked", "uncertified_steps"
-    (indices), "min_certificate_margin", "stored_certificates". "tolerances": the bounds verify judged
-    by (`Tolerances` as a dict, m / rad);
-    "plan_options": the options the plan says it was planned with (reported, never obeyed)."""
-
-    def summary(self, max_violations: int = 20) -> str:
-        """Readable multi-line text: verdict, metrics in mm, the first `max_violations` violations."""
-        m = self.metrics
-        where = m.get("min_clearance_at") or {}
-        lines = [
-            f"verify: {'OK' if self.ok else 'FAILED'} ({len(self.violations)} violations, "
-            f"{m.get('n_steps', 0)} steps)",
-            f"  min clearance {_mm(m.get('min_clearance'))} mm"
-            + (f" (step {where.get('step')}, {where.get('who')})" if where else ""),
-            f"  max surface error {_mm(m.get('max_surface_error'))} mm, max gait step "
-            f"{_mm(m.get('max_gait_step'))} mm, max slip {_mm(m.get('max_slip'))} mm",
-            f"  final contact error avg {_mm(m.get('final_avg_error'))} mm, "
-            f"max {_mm(m.get('final_max_error'))} mm",
-            f"  self-collision: min sphere clearance {_mm(m.get('min_self_clearance'))} mm"
-            + (f" (step {m['min_self_clearance_at']['step']}, {m['min_self_clearance_at']['who']})"
-               if m.get("min_self_clearance_at") else "")
-            + f"; mesh check: {m.get('mesh_check') or 'n/a'}",
-            f"  stability: {len(m.get('uncertified_steps') or [])} steps without a {m.get('stability')} "
-            f"certificate ({'a check' if m.get('stability_checked') else 'a metric: planned without'}; μ = "
-            f"{(m.get('tolerances') or {}).get('mu', constants.MU):g}); {m.get('unstable_gaits', 0)} gaits "
-            f"whose other fingers are not in force closure, least ε "
-            f"{m.get('min_holding_quality', float('nan')):.4f}",
-        ]
-        tol, opts = m.get("tolerances") or {}, m.get("plan_options") or {}
-        if tol:
-            lines.append(f"  judged with zeta {_mm(tol.get('zeta'))} mm, eta {_mm(tol.get('eta'))} mm "
-                         f"(the plan's own: zeta {_mm(opts.get('zeta'))} mm, eta {_mm(opts.get('eta'))} mm)")
-        for v in self.violations[:max_violations]:
-            lines.append(f"  step {v.step}: {v.check} [{v.who}]: {v.message}")
-        if len(self.violations) > max_violations:
-            lines.append(f"  ... and {len(self.violations) - max_violations} more")
-        return "\n".join(lines)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict: ok, violations (list of dicts), metrics."""
-        return {
-            "ok": self.ok,
-            "violations": [asdict(v) for v in self.violations],
-            "metrics": dict(self.metrics),
-        }
-
-
-def _mm(x: Any) -> str:
-    if isinstance(x, bool) or not isinstance(x, (int, float, np.floating, np.integer)):
-        return "n/a"
-    return "n/a" if not np.isfinite(x) else f"{x * 1e3:.3f}"
 
 
 # ---------------------------------------------------------------------------------------------- context
@@ -227,10 +143,7 @@ class VerifyContext:
             "min_clearance": float("inf"), "min_clearance_at": None, "max_surface_error": 0.0,
             "max_gait_step": 0.0, "max_slip": 0.0, "final_avg_error": float("nan"),
             "final_max_error": float("nan"), "n_steps": len(plan.steps),
-            "min_holding_quality": float("inf"), "min_holding_quality_at": None, "unstable_gaits": 0,
-            "max_slide_path_error": 0.0, "uncertified_steps": [], "min_certificate_margin": float("inf"),
-            "stored_certificates": sum(s.certificate is not None for s in plan.steps),
-            "tolerances": asdict(tol), "plan_options": dict(plan.options),
+            **stability_metrics(plan), "tolerances": asdict(tol), "plan_options": dict(plan.options),
             "min_self_clearance": float("inf"), "min_self_clearance_at": None, "max_mesh_penetration": 0.0,
             "mesh_check": "",
         }
@@ -466,22 +379,6 @@ CHECKS = tuple(c.name for c in CHECK_TABLE)
 
 
 # ---------------------------------------------------------------------------------------------- metrics
-def record_holding_quality(ctx: VerifyContext, k: int, step: PlanStep) -> None:
-    """Stability (a metric, not a check: the paper's method does not guarantee it): force-closure margin
-    of the other fingers, which hold the object while the gait's finger is lifted (at step k − 1)."""
-    if k == 0 or step.kind != "gait":
-        return
-    prev, exact, metrics = ctx.plan.steps[k - 1], ctx.exact, ctx.metrics
-    com, length = ctx.torque_reference
-    eps = holding_quality(exact.p_object_closest[k - 1],
-                          transform_points(inv_T(prev.T_palm_object), exact.p_palm_tips[k - 1]),
-                          ctx.fingers.index(step.finger), com, length, ctx.tol.mu)
-    if eps < metrics["min_holding_quality"]:
-        metrics["min_holding_quality"] = eps
-        metrics["min_holding_quality_at"] = {"step": k, "who": step.finger}
-    metrics["unstable_gaits"] += int(eps <= 0.0)
-
-
 def _record_final_metrics(ctx: VerifyContext) -> None:
     """Final contact errors (exact); NaN for the minima that saw no value (no gait, no sphere)."""
     metrics = ctx.metrics
