@@ -171,8 +171,12 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [(str(p), m, s, o) for p in files for m in args.methods for s in args.stabilities
             for o in args.gait_orders if not (s == "none" and o == "search")]
     t0 = time.perf_counter()
+    records = []
     with ProcessPoolExecutor(args.workers) as pool:
-        records = list(pool.map(run_one, *zip(*jobs, strict=True)))
+        for rec in pool.map(run_one, *zip(*jobs, strict=True)):  # in job order, as they finish
+            records.append(rec)
+            print(f"[{len(records)}/{len(jobs)}] {rec['problem']} {rec['method']} {rec['stability']}: "
+                  f"{rec.get('status')} verified={rec.get('verified')} {rec.get('time_s')} s", flush=True)
     rows = summarise(records)
     ratios = time_ratios(records)
     print(markdown(rows))

@@ -423,4 +423,5 @@ def test_importing_and_using_plan_loads_no_model_code():
                   "regrasp_casadi.problem", "regrasp_casadi.verify"}
     assert loaded & model_code == set()
     assert {m for m in loaded if m.startswith("regrasp_casadi.")} == {
-        "regrasp_casadi.errors", "regrasp_casadi.files", "regrasp_casadi.motion", "regrasp_casadi.plan"}
+        "regrasp_casadi.errors", "regrasp_casadi.files", "regrasp_casadi.motion", "regrasp_casadi.plan",
+            "regrasp_casadi.plan_codec"}
