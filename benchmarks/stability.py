@@ -155,37 +155,57 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
+def _jobs(args) -> list[tuple]:
+    """(path, method, stability, gait order) of every plan: the shipped problems first (with
+    `--shipped-stabilities`), then the paper pairs pair-major (banana_0, mustard_0, ..., banana_1, ...),
+    so that a run stopped early covers every object alike."""
+    files = [p for p in _problem_files(not args.no_ycb) if not args.only or p.stem in args.only]
+    shipped = [p for p in files if p.parent != HERE / "problems"]
+    pairs = sorted((p for p in files if p.parent == HERE / "problems"),
+                   key=lambda p: (int(p.stem.rsplit("_", 1)[1]), p.stem))
+    jobs = []
+    for p in shipped + pairs:
+        stabilities = args.shipped_stabilities if p in shipped and args.shipped_stabilities else args.stabilities
+        jobs += [(str(p), m, s, o) for m in args.methods for s in stabilities for o in args.gait_orders
+                 if not (s == "none" and o == "search")]
+    return jobs
+
+
+def _write(args, records: list[dict], n_jobs: int, wall_s: float) -> list[dict]:
+    """Write the results so far (`complete` false until every job is in); returns the summary rows."""
+    from machine import machine_info
+
+    rows = summarise(records)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"machine": machine_info(), "workers": args.workers, "jobs": n_jobs,
+                                    "complete": len(records) == n_jobs, "wall_s": round(wall_s, 1),
+                                    "summary": rows, "time_ratios": time_ratios(records),
+                                    "records": records}, indent=1))
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-ycb", action="store_true", help="shipped problems only")
     ap.add_argument("--methods", nargs="+", default=["svd", "sd"])
     ap.add_argument("--stabilities", nargs="+", default=["none", "force_closure"])
+    ap.add_argument("--shipped-stabilities", nargs="+", help="the shipped problems' (default: --stabilities)")
     ap.add_argument("--gait-orders", nargs="+", default=["pattern"])
     ap.add_argument("--only", nargs="+", help="problem names (file stems) to run")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=pathlib.Path, default=HERE / "results" / "stability.json")
     args = ap.parse_args(argv)
-    from machine import machine_info
-
-    files = [p for p in _problem_files(not args.no_ycb) if not args.only or p.stem in args.only]
-    jobs = [(str(p), m, s, o) for p in files for m in args.methods for s in args.stabilities
-            for o in args.gait_orders if not (s == "none" and o == "search")]
+    jobs = _jobs(args)
     t0 = time.perf_counter()
-    records = []
+    records: list[dict] = []
     with ProcessPoolExecutor(args.workers) as pool:
         for rec in pool.map(run_one, *zip(*jobs, strict=True)):  # in job order, as they finish
             records.append(rec)
             print(f"[{len(records)}/{len(jobs)}] {rec['problem']} {rec['method']} {rec['stability']}: "
                   f"{rec.get('status')} verified={rec.get('verified')} {rec.get('time_s')} s", flush=True)
-    rows = summarise(records)
-    ratios = time_ratios(records)
+            rows = _write(args, records, len(jobs), time.perf_counter() - t0)  # a partial run is kept
     print(markdown(rows))
-    print("plan time against stability 'none' (same problem and method):", ratios)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"machine": machine_info(), "workers": args.workers,
-                                    "wall_s": round(time.perf_counter() - t0, 1), "summary": rows,
-                                    "time_ratios": ratios,
-                                    "records": records}, indent=1))
+    print("plan time against stability 'none' (same problem and method):", time_ratios(records))
     print(f"wrote {args.out}")
     return 0
 

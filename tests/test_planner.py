@@ -52,6 +52,7 @@ def test_shipped_problem_plans_hold_the_object_and_verify(path, method):
         assert plan.status in ("converged", "stalled", "iteration_limit"), plan.status_detail
 
 
+@pytest.mark.slow  # 8 more plans; the default run checks the paper planner in test_stable_planner
 @pytest.mark.parametrize("method", ["svd", "sd"])
 @pytest.mark.parametrize("path", PROBLEMS, ids=[p.stem for p in PROBLEMS])
 def test_the_paper_planner_converges_on_the_shipped_problems(path, method):
