@@ -16,6 +16,35 @@ load falls on each setting alike. Measures and records; asserts nothing.
     python benchmarks/stability.py --workers 2                         # everything, results JSON
     python benchmarks/stability.py --no-ycb --stabilities none force_closure --out /tmp/s.json
     python benchmarks/stability.py --gait-orders pattern search       # also the searched gait order
+
+Measured (results/stability.json; commit df46916, 2026-12-02T00:29 UTC, AMD EPYC, 2 cores shared with
+5 other jobs, 1-min load 12-19, so every time is inflated 3-6x over an idle run; the settings of one problem
+and method ran back to back, so both saw the same load). The run did not finish: 11 of the 50
+(pair, method) plans have both settings (banana_0, banana_1, mustard_0, pringles_0, soft-scrub_0, sugar-box_0; pair-major order, so pairs _0 first);
+a worker was OOM-killed once at 4.6 GB (banana_0 sd force_closure; cause not investigated).
+
+Paper pairs, the 11 (pair, method) plans with both settings:
+
+| stability | gait order | method | plans | converged | verified | both | both, w/o self-coll. | median time (s) | median steps (converged) | gaits / slides / reposings per plan | certified steps |
+|---|---|---|---|---|---|---|---|---|---|---|---|
+| force_closure | pattern | both | 11 | 4 | 2 | 2 | 4 | 160.847 | 99.5 | 19.36 / 68.73 / 10.64 | 100.0 % |
+| none | pattern | both | 11 | 8 | 2 | 2 | 8 | 94.176 | 27.5 | 27.64 / 0.0 / 8.09 | 69.5 % |
+
+force_closure: 2/11 converged and verified (4/11 without verify's self-collision rows: 22 of
+the 25 pairs start in sphere self-collision, benchmarks/self_collision.py); none: 2/11 (8/11).
+Plan time force_closure / none, same problem and method: median of the ratios 1.801, ratio of the
+medians 1.708. Issue 14's targets: ≥ 90 % converged and verified — missed (18 %;
+36 % without the self-collision rows); median time ≤ 1.5× "none" — missed
+(1.708×). The cost is the slides: a lift that is not certified becomes slides of ≤ 2 mm, each an
+OPT1 solve, a certificate at both ends and a path.
+
+Shipped problems, force_closure (bottle_regrasp from the stopped first run's log: stalled and verified, 147 s
+svd / 192 s sd, not in the JSON; "none" is benchmarks/regression.py --no-ycb --stability none: all 8
+converge and verify, 0 of 8 differ from the paper planner of main 5964f02):
+
+| stability | gait order | method | plans | converged | verified | both | both, w/o self-coll. | median time (s) | median steps (converged) | gaits / slides / reposings per plan | certified steps |
+|---|---|---|---|---|---|---|---|---|---|---|---|
+| force_closure | pattern | both | 6 | 4 | 6 | 4 | 4 | 58.909 | 67.0 | 14.83 / 57.5 / 10.0 | 100.0 % |
 """
 
 from __future__ import annotations
