@@ -151,6 +151,7 @@ def problem_paths(problems_dir: pathlib.Path, name: str, n_pairs: int) -> list[p
 
 def generate_pairs(name: str, n_pairs: int, problems_dir: str) -> tuple[str, float, list[str]]:
     """Write the missing problem files of `name` (same seed → same pairs). Returns (name, seconds, paths)."""
+    from regrasp_casadi.certificates import YCB_MASSES
     from regrasp_casadi.grasp_gen import generate_regrasp_pairs
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
@@ -167,7 +168,8 @@ def generate_pairs(name: str, n_pairs: int, problems_dir: str) -> tuple[str, flo
             d = float(np.mean(np.linalg.norm(g0.contacts_object - gg.contacts_object, axis=1)))
             desc = (f"{name} ({OBJECTS[name]}) regrasp pair {k} of {n_pairs}, grasp_gen seed {seed}; mean "
                     f"goal contact distance {d * 100:.2f} cm")
-            RegraspProblem(f"{name}_{k}", desc, None, hand, obj, g0, gg, {}).save(path)
+            RegraspProblem(f"{name}_{k}", desc, None, hand, obj, g0, gg, {},
+                           object_mass=YCB_MASSES[OBJECTS[name]]).save(path)
     return name, time.perf_counter() - t0, [str(p) for p in paths]
 
 

@@ -7,6 +7,7 @@ record a fingerprint before the change, another after, and compare them.
     python benchmarks/regression.py --out after.json --compare before.json
     python benchmarks/regression.py --no-ycb --out quick.json          # shipped problems only (~20 s)
     python benchmarks/regression.py --no-self-collision --out off.json --compare before.json
+    python benchmarks/regression.py --stability none --out paper.json  # no stability certificate
 
 `--no-self-collision` plans with ``self_clearance=None`` (no self-collision constraints, the planner as it
 was before them) and judges "verified" without verify's self-collision checks, so it reproduces a
@@ -45,9 +46,10 @@ def _problem_files(ycb: bool) -> list[pathlib.Path]:
 _SELF_CHECKS = ("self_collision", "self_collision_mesh")
 
 
-def fingerprint(path: str, method: str, self_collision: bool = True) -> dict:
+def fingerprint(path: str, method: str, self_collision: bool = True, stability: str | None = None) -> dict:
     """Plan one problem with one method; return its fingerprint (never raises). `self_collision=False`:
-    plan without self-collision constraints and leave verify's self-collision checks out of "verified"."""
+    plan without self-collision constraints and leave verify's self-collision checks out of "verified";
+    `stability`: `PlannerOptions.stability` of the plan (None: the planner's default)."""
     from regrasp_casadi.planner import plan_regrasp
     from regrasp_casadi.problem import RegraspProblem
     from regrasp_casadi.verify import verify
@@ -56,6 +58,8 @@ def fingerprint(path: str, method: str, self_collision: bool = True) -> dict:
     try:
         problem = RegraspProblem.load(path)
         extra = {} if self_collision else {"self_clearance": None}
+        if stability is not None:
+            extra["stability"] = stability
         plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, **extra)
         report = verify(plan, problem.hand, problem.obj)
         counted = [v for v in report.violations if self_collision or v.check not in _SELF_CHECKS]
@@ -111,11 +115,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-self-collision", action="store_true",
                     help="plan with self_clearance=None; 'verified' without the self-collision checks")
+    ap.add_argument("--stability", choices=("force_closure", "gravity", "none"),
+                    help="PlannerOptions.stability of every plan (default: the planner's)")
     args = ap.parse_args(argv)
     from machine import machine_info
 
     on = not args.no_self_collision
-    jobs = [(str(p), m, on) for p in _problem_files(not args.no_ycb) for m in ("svd", "sd")]
+    jobs = [(str(p), m, on, args.stability) for p in _problem_files(not args.no_ycb) for m in ("svd", "sd")]
     with ProcessPoolExecutor(args.workers) as pool:
         records = list(pool.map(fingerprint, *zip(*jobs, strict=True)))
     args.out.write_text(json.dumps({"machine": machine_info(), "records": records}, indent=1))

@@ -43,6 +43,8 @@ from regrasp_casadi.cli_tools import (
     Parser,
     check_host,
     check_output,
+    finite_float,
+    finite_positive_float,
     found_progress,
     non_negative_float,
     non_negative_int,
@@ -83,12 +85,17 @@ _EPILOG = """exit codes:
 
 
 # ---------------------------------------------------------------------------------------------- helpers
-def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool) -> Plan:
+def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool,
+              stability: str | None = None) -> Plan:
     from regrasp_casadi.planner import plan_regrasp
 
     kwargs = {"method": method}
     if max_iters is not None:
         kwargs["max_iters"] = max_iters
+    if stability is not None:
+        kwargs["stability"] = stability
+    if getattr(problem, "object_mass", None) is not None:
+        kwargs["object_mass"] = problem.object_mass
     n_max = max_iters if max_iters is not None else 50
     with progress_bar("planning", show_progress, total=n_max) as bar:
         plan = plan_regrasp(problem.grasp0, problem.grasp_goal, progress=plan_progress(bar), **kwargs)
@@ -188,7 +195,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     problem = RegraspProblem.load(args.problem)
     t0 = time.perf_counter()
     progress = progress_enabled(args)
-    plan = _run_plan(problem, args.method, args.max_iters, progress)
+    plan = _run_plan(problem, args.method, args.max_iters, progress, args.stability)
     code = _finish_plan(plan, problem.hand, problem.obj, out, html, time.perf_counter() - t0, progress)
     if args.view:
         _view_live(plan, problem.hand, problem.obj, args.host)
@@ -365,25 +372,6 @@ def _add_host(parser: argparse.ArgumentParser) -> None:
                              "0.0.0.0 opens it to the network")
 
 
-def _finite(text: str) -> float:
-    """argparse type: a finite number."""
-    try:
-        x = float(text)
-    except ValueError:
-        x = float("nan")
-    if not math.isfinite(x):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return x
-
-
-def _positive(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    x = _finite(text)
-    if x <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return x
-
-
 def _add_verify_arguments(sp: argparse.ArgumentParser) -> None:
     """`regrasp verify PLAN.json [--all]` and verify's tolerances in mm (`_VERIFY_TOLERANCES_MM`)."""
     sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
@@ -391,15 +379,15 @@ def _add_verify_arguments(sp: argparse.ArgumentParser) -> None:
     sp.description = (f"{sp.description}.\nverify judges with its own tolerances (the flags below); the "
                       "options recorded in the plan\n(its zeta, eta, ...) are reported, never obeyed.")
     judged = "(default: verify's own)"
-    sp.add_argument("--zeta", type=_positive, metavar="MM",
+    sp.add_argument("--zeta", type=finite_positive_float, metavar="MM",
                     help=f"largest final contact error a 'converged' plan may have, mm {judged}")
-    sp.add_argument("--eta", type=_positive, metavar="MM",
+    sp.add_argument("--eta", type=finite_positive_float, metavar="MM",
                     help=f"gait step bound on a fingertip, mm {judged}")
-    sp.add_argument("--surface-tol", type=_positive, metavar="MM",
+    sp.add_argument("--surface-tol", type=finite_positive_float, metavar="MM",
                     help=f"allowed fingertip distance from the surface, mm {judged}")
-    sp.add_argument("--max-slip", type=_positive, metavar="MM",
+    sp.add_argument("--max-slip", type=finite_positive_float, metavar="MM",
                     help=f"allowed contact slip during reposing, mm {judged}")
-    sp.add_argument("--min-clearance", type=_finite, metavar="MM",
+    sp.add_argument("--min-clearance", type=finite_float, metavar="MM",
                     help=f"required clearance of the non-tip collision spheres, mm {judged}")
     sp.set_defaults(func=cmd_verify)
 
@@ -459,6 +447,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("problem", metavar="PROBLEM.yaml", help="regrasp problem file (YAML)")
     sp.add_argument("--method", choices=("svd", "sd"), default="svd",
                     help="in-grasp objective E_des: svd (Kabsch pose) or sd (workspace distance)")
+    sp.add_argument("--stability", choices=("force_closure", "gravity", "none"), default="force_closure",
+                    help="certificate every step must have: force closure of the holding fingers (default), "
+                         "gravity hold of the object's weight (palm -z), or none (the paper's planner)")
     sp.add_argument("--out", default="plan.json", metavar="PLAN.json", help="plan file to write")
     sp.add_argument("--html", metavar="REPLAY.html", help="also write a self-contained HTML replay")
     sp.add_argument("--view", action="store_true", help="open the live viewer after planning")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import sys
 import tempfile
@@ -18,7 +19,8 @@ from typing import Any
 
 __all__ = [
     "EXIT_BAD_INPUT", "UserError", "print_error", "Parser", "HelpFormatter",
-    "positive_int", "non_negative_int", "positive_float", "non_negative_float",
+    "positive_int", "non_negative_int", "positive_float", "non_negative_float", "finite_float",
+    "finite_positive_float",
     "check_output", "check_host", "progress_enabled", "progress_bar", "plan_progress", "found_progress",
 ]
 
@@ -56,6 +58,25 @@ positive_int = _number(int, 0, True, "a positive integer")
 non_negative_int = _number(int, 0, False, "a non-negative integer")
 positive_float = _number(float, 0.0, True, "a positive number")
 non_negative_float = _number(float, 0.0, False, "a non-negative number")
+
+
+def finite_float(text: str) -> float:
+    """argparse type: a finite number."""
+    try:
+        x = float(text)
+    except ValueError:
+        x = float("nan")
+    if not math.isfinite(x):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return x
+
+
+def finite_positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    x = finite_float(text)
+    if x <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return x
 
 
 class Parser(argparse.ArgumentParser):

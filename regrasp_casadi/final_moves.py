@@ -33,11 +33,12 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = ["FinalMoves", "run_final_moves", "decide_status", "pose_distance"]
 
-FinalStop = Literal["reached", "small_gain", "no_gain", "rejected", "contact_drift", "time_budget",
-                    "not_run"]
+FinalStop = Literal["reached", "small_gain", "no_gain", "rejected", "contact_drift", "uncertified",
+                    "time_budget", "not_run"]
 """Why the final moves ended: the object is within `final_pose_tol`; the last move gained less than
 `final_min_gain` (accepted) or nothing (not accepted); OPT2's exact checks rejected the move; the move
-would take a contact farther than ζ from its goal (not accepted); the time budget ran out; not run."""
+would take a contact farther than ζ from its goal (not accepted); the moved grasp would have no stability
+certificate (`planner._Run.uncertified`; not accepted); the time budget ran out; not run."""
 
 
 class FinalMoveRun(Protocol):
@@ -57,7 +58,12 @@ class FinalMoveRun(Protocol):
 
     def tips_object(self) -> NDArray: ...
 
-    def add_step(self, kind: str, finger: str | None, status: str, solve_time: float) -> PlanStep: ...
+    def add_step(self, kind: str, finger: str | None, status: str, solve_time: float,
+                 certificate=None) -> PlanStep: ...
+
+    def grasp_certificate(self): ...
+
+    def uncertified(self, q: NDArray, T_palm_object: NDArray) -> str: ...
 
     def largest_error(self) -> float: ...
 
@@ -111,7 +117,7 @@ def run_final_moves(run: FinalMoveRun, options: PlannerOptions) -> FinalMoves:
             return FinalMoves(stop, len(distances) - 1, tuple(distances), note)
         stretch.update(run.T_palm_object, T_target, res.T_palm_object)
         run.q, run.T_palm_object = res.q, res.T_palm_object
-        run.add_step("final", None, res.status, res.solve_time)
+        run.add_step("final", None, res.status, res.solve_time, run.grasp_certificate())
         distances.append(pose_distance(run.T_palm_object, T_goal, run.obj))
         if distances[-2] - distances[-1] < options.final_min_gain:
             return FinalMoves("small_gain", len(distances) - 1, tuple(distances))
@@ -180,6 +186,9 @@ def _judge(run: FinalMoveRun, res, distance: float, zeta: float) -> tuple[FinalS
     if worst > zeta:
         return "contact_drift", (f"the next final move would take a contact {worst * 1e3:.2f} mm from its "
                                  f"goal (> ζ)")
+    bad = run.uncertified(res.q, res.T_palm_object)
+    if bad:
+        return "uncertified", f"the next final move was rejected: {bad}"
     return None, ""
 
 

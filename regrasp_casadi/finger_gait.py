@@ -7,7 +7,7 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import casadi as ca
@@ -219,10 +219,13 @@ class FingerGaitNLP:
         _, _, sd_tip, sd_l = self._points(q_r, p)
         return np.concatenate([np.asarray(sd_tip).ravel(), np.asarray(sd_l).ravel()])
 
-    def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tip_goal: ArrayLike) -> FingerGaitResult:
+    def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tip_goal: ArrayLike,
+              eta: float | None = None) -> FingerGaitResult:
         """Move the finger's tip towards `p_object_tip_goal` (3,) (goal tip-sphere centre, object frame, m)
-        from the grasp (`q` (n,) rad, `T_palm_object` (4, 4)); never raises on a failed solve."""
-        o = self.options
+        from the grasp (`q` (n,) rad, `T_palm_object` (4, 4)); never raises on a failed solve. `eta`: a
+        shorter step bound than the options' η for this solve, m (a bound, not a rebuild: e.g. a
+        shortened gait or one step of a slide)."""
+        o = self.options if eta is None else replace(self.options, eta=float(eta))
         q = np.asarray(q, dtype=float).copy()
         T = np.asarray(T_palm_object, dtype=float)
         c_goal = np.asarray(p_object_tip_goal, dtype=float).reshape(3)
@@ -238,6 +241,8 @@ class FingerGaitNLP:
 
         sc = self.self_collision
         bounds, floor = (self._bounds, None) if sc is None else sc.bounds(self._bounds, q, _MM)
+        if eta is not None:
+            bounds = self._step_bounds(bounds, o.eta)
 
         def solve_with(x, offsets):
             return self.warm_start.solve(self._solver, bounds, x0=x, p=params(*offsets))
@@ -256,11 +261,18 @@ class FingerGaitNLP:
                                        done, new_offsets, offsets=(start.exact - start.smooth, planes),
                                        x=x0, evaluation=start, max_solves=o.max_corrections + 1,
                                        accept=_solver.clipped_if_finite(self._bounds))
-        return self._result(q, c0, corr, floor)
+        return self._result(q, c0, corr, floor, o)
 
-    def _result(self, q, c0, corr: _solver.Correction[_Evaluation], floor) -> FingerGaitResult:
-        """The gait's result from the correction loop's last point, judged with the exact distances."""
-        o = self.options
+    def _step_bounds(self, bounds: _solver.Bounds, eta: float) -> _solver.Bounds:
+        """`bounds` with the step bound `eta`, m (constraint row 1 + k: the tip's squared step, cm²)."""
+        ubg = np.array(bounds.ubg, dtype=float)
+        ubg[1 + self._k] = _CM2 * eta**2
+        return replace(bounds, ubg=ubg)
+
+    def _result(self, q, c0, corr: _solver.Correction[_Evaluation], floor, o: FingerGaitOptions
+                ) -> FingerGaitResult:
+        """The gait's result from the correction loop's last point, judged with the exact distances (and
+        the step bound of `o`)."""
         ev = corr.evaluation
         q_new = q.copy()
         q_new[self._idx] = corr.x

@@ -45,9 +45,10 @@ DEFAULT_MAX_JOINT_SPEED = 1.0
 DEFAULT_MIN_STEP_DURATION = 0.05
 """Shortest duration of one step's motion, s: a step whose joints barely move still takes this long."""
 
-PathPhase = Literal["lift", "transit", "touch_down", "repose"]
+PathPhase = Literal["lift", "transit", "touch_down", "repose", "slide"]
 """What a segment of a path does: a gait's lift-off along the contact normal, its transit above the
-object, its touch-down along the new contact's normal; or an in-grasp reposing (also the final moves)."""
+object, its touch-down along the new contact's normal; an in-grasp reposing (also the final moves); or
+a slide (one tip along the surface, `slide_trajectory`)."""
 
 PATH_PHASES: tuple[PathPhase, ...] = get_args(PathPhase)
 

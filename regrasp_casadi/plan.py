@@ -15,9 +15,9 @@ or path phase, a duplicate key or a non-UTF-8 file is a `PlanFormatError` naming
 Schema versions: 2 (written) adds `steps[i].path`; files of version 1 (no paths) still load, their
 steps without a path; any other version is a `PlanFormatError` saying which versions are readable.
 
-Only numpy, the standard library, `regrasp_casadi.errors`, `regrasp_casadi.files`,
-`regrasp_casadi.grasp_metrics` and `regrasp_casadi.motion` are imported here: no hand, object or CasADi
-code.
+The file's field validation and JSON text are `regrasp_casadi.plan_codec`. Only numpy, the standard
+library, `regrasp_casadi.errors`, `regrasp_casadi.files`, `regrasp_casadi.grasp_metrics`,
+`regrasp_casadi.motion` and `regrasp_casadi.plan_codec` are imported here: no hand, object or CasADi code.
 """
 
 from __future__ import annotations
@@ -39,11 +39,22 @@ from regrasp_casadi.grasp_metrics import pose_error
 from regrasp_casadi.motion import (
     DEFAULT_MAX_JOINT_SPEED,
     DEFAULT_MIN_STEP_DURATION,
-    INTERPOLATION,
-    PATH_PHASES,
     StepPath,
     join_step_motions,
     sample_knots,
+)
+from regrasp_casadi.plan_codec import (
+    check_choice,
+    get_array,
+    get_certificate,
+    get_choice,
+    get_field,
+    get_float,
+    jsonable,
+    path_from_dict,
+    path_to_dict,
+    read_json,
+    require_mapping,
 )
 
 __all__ = ["PlanStep", "Plan", "StepKind", "PlanStatus", "PlanMethod", "SCHEMA_VERSION",
@@ -57,8 +68,9 @@ READABLE_SCHEMA_VERSIONS = (1, 2)
 
 _log = logging.getLogger(__name__)
 
-StepKind = Literal["initial", "gait", "repose", "final"]
-"""What a step does: the initial grasp, a finger gait (OPT1), an in-grasp reposing (OPT2), a final move."""
+StepKind = Literal["initial", "gait", "repose", "final", "slide"]
+"""What a step does: the initial grasp, a finger gait (OPT1), an in-grasp reposing (OPT2), a final move,
+or a slide (one finger moves with its tip on the surface, the rest still: the paper's assumption 5)."""
 
 PlanStatus = Literal["converged", "iteration_limit", "stalled", "solver_failure", "invalid_input",
                      "interrupted", "pose_not_reached"]
@@ -133,6 +145,9 @@ class PlanStep:
     path: StepPath | None = None
     """The motion from the previous step to this one (None: the initial step, a plan of schema version
     1, or a plan made without trajectories; `Plan.sample` then moves linearly between the steps)."""
+    certificate: dict | None = None
+    """The stability certificate of the step's holding set (`certificates.Certificate.to_dict()`), None
+    when planned without one (stability "none"); written to the file only when set."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", frozen_array(self.q, (None,)))
@@ -152,8 +167,8 @@ class PlanStep:
         Raises:
             PlanFormatError: `kind` is not one of `STEP_KINDS` (the file could not be read back).
         """
-        _check_choice(self.kind, STEP_KINDS, f"{where}.kind")
-        return {
+        check_choice(self.kind, STEP_KINDS, f"{where}.kind")
+        d = {
             "kind": self.kind,
             "finger": self.finger,
             "q": self.q.tolist(),
@@ -162,8 +177,9 @@ class PlanStep:
             "contact_error": self.contact_error.tolist(),
             "solver_status": self.solver_status,
             "solve_time": self.solve_time,
-            "path": None if self.path is None else _path_to_dict(self.path, f"{where}.path"),
+            "path": None if self.path is None else path_to_dict(self.path, f"{where}.path"),
         }
+        return d if self.certificate is None else {**d, "certificate": dict(self.certificate)}
 
     @classmethod
     def from_dict(cls, d: Any, where: str = "step", schema_version: int = SCHEMA_VERSION) -> PlanStep:
@@ -174,22 +190,23 @@ class PlanStep:
         null).
         """
         fields = _STEP_FIELDS if schema_version >= 2 else tuple(f for f in _STEP_FIELDS if f != "path")
-        d = _require_mapping(d, where, fields)
+        d = require_mapping(d, where, fields)
         path = None
         if schema_version >= 2:
             if "path" not in d:
                 raise PlanFormatError(f"{where}.path: missing field (null for a step without motion)")
-            path = None if d["path"] is None else _path_from_dict(d["path"], f"{where}.path")
+            path = None if d["path"] is None else path_from_dict(d["path"], f"{where}.path")
         step = cls(
-            kind=_get_choice(d, "kind", where, STEP_KINDS),
-            finger=_get(d, "finger", where, (str, type(None))),
-            q=_get_array(d, "q", where, 1),
-            T_palm_object=_get_array(d, "T_palm_object", where, 2, (4, 4)),
-            contacts_object=_get_array(d, "contacts_object", where, 2, (None, 3)),
-            contact_error=_get_array(d, "contact_error", where, 1),
-            solver_status=_get(d, "solver_status", where, str),
-            solve_time=_get_float(d, "solve_time", where),
+            kind=get_choice(d, "kind", where, STEP_KINDS),
+            finger=get_field(d, "finger", where, (str, type(None))),
+            q=get_array(d, "q", where, 1),
+            T_palm_object=get_array(d, "T_palm_object", where, 2, (4, 4)),
+            contacts_object=get_array(d, "contacts_object", where, 2, (None, 3)),
+            contact_error=get_array(d, "contact_error", where, 1),
+            solver_status=get_field(d, "solver_status", where, str),
+            solve_time=get_float(d, "solve_time", where),
             path=path,
+            certificate=get_certificate(d, where),
         )
         if path is not None and path.q.shape[1] != step.q.shape[0]:
             raise PlanFormatError(f"{where}.path.q: expected {step.q.shape[0]} joints per knot (as "
@@ -198,142 +215,6 @@ class PlanStep:
 
 
 _STEP_FIELDS = tuple(f.name for f in dataclasses.fields(PlanStep))
-_PATH_FIELDS = tuple(f.name for f in dataclasses.fields(StepPath))
-
-
-def _path_to_dict(path: StepPath, where: str) -> dict[str, Any]:
-    """JSON-ready dict of a `StepPath`; `PlanFormatError` for a phase or rule `from_dict` would refuse."""
-    for i, phase in enumerate(path.phases):
-        _check_choice(phase, PATH_PHASES, f"{where}.phases[{i}]")
-    _check_choice(path.interpolation, (INTERPOLATION,), f"{where}.interpolation")
-    return {
-        "t": path.t.tolist(),
-        "q": path.q.tolist(),
-        "T_palm_object": path.T_palm_object.tolist(),
-        "phases": list(path.phases),
-        "ok": path.ok,
-        "detail": path.detail,
-        "metrics": dict(path.metrics),
-        "interpolation": path.interpolation,
-    }
-
-
-def _path_from_dict(d: Any, where: str) -> StepPath:
-    """Inverse of `_path_to_dict`; `PlanFormatError` naming the field."""
-    d = _require_mapping(d, where, _PATH_FIELDS)
-    phases = _get(d, "phases", where, list)
-    for i, phase in enumerate(phases):
-        _check_choice(phase, PATH_PHASES, f"{where}.phases[{i}]")
-    metrics = _get(d, "metrics", where, dict)
-    for k, v in metrics.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise PlanFormatError(f"{where}.metrics.{k}: expected a finite number, found {v!r:.60}")
-    t = _get_array(d, "t", where, 1)
-    if t.size and (t[0] != 0.0 or np.any(np.diff(t) < 0)):
-        raise PlanFormatError(f"{where}.t: expected time stamps from 0, non-decreasing")
-    try:
-        return StepPath(t=t, q=_get_array(d, "q", where, 2),
-                        T_palm_object=_get_array(d, "T_palm_object", where, 3, (None, 4, 4)),
-                        phases=tuple(phases), ok=_get(d, "ok", where, bool),
-                        detail=_get(d, "detail", where, str), metrics=metrics,
-                        interpolation=_get_choice(d, "interpolation", where, (INTERPOLATION,)))
-    except ValueError as e:
-        raise PlanFormatError(f"{where}: {e}") from None
-
-
-# ---------------------------------------------------------------------------- dict field validation
-def _require_mapping(d: Any, where: str, fields: tuple[str, ...]) -> dict:
-    """`d` itself, after checking that it is a dict whose keys are all among `fields`."""
-    if not isinstance(d, dict):
-        raise PlanFormatError(f"{where}: expected an object (mapping), found {type(d).__name__}")
-    unknown = [k for k in d if k not in fields]
-    if unknown:
-        names = ", ".join(repr(k) for k in unknown)
-        raise PlanFormatError(
-            f"{where}: unknown field{'s' if len(unknown) > 1 else ''} {names} (known: {', '.join(fields)})"
-        )
-    return d
-
-
-def _check_choice(value: Any, choices: tuple[str, ...], name: str) -> None:
-    if not isinstance(value, str) or value not in choices:
-        raise PlanFormatError(f"{name}: expected one of {', '.join(choices)}, found {value!r:.60}")
-
-
-def _get(d: dict, key: str, where: str, types: type | tuple[type, ...]) -> Any:
-    if key not in d:
-        raise PlanFormatError(f"{where}.{key}: missing field")
-    v = d[key]
-    allowed = types if isinstance(types, tuple) else (types,)
-    if not isinstance(v, allowed) or (isinstance(v, bool) and bool not in allowed):
-        names = types.__name__ if isinstance(types, type) else " or ".join(t.__name__ for t in types)
-        raise PlanFormatError(f"{where}.{key}: expected {names}, found {type(v).__name__} {v!r:.60}")
-    return v
-
-
-def _get_choice(d: dict, key: str, where: str, choices: tuple[str, ...]) -> Any:
-    v = _get(d, key, where, str)
-    _check_choice(v, choices, f"{where}.{key}")
-    return v
-
-
-def _get_float(d: dict, key: str, where: str) -> float:
-    v = _get(d, key, where, (int, float))
-    if isinstance(v, bool) or not math.isfinite(v):
-        raise PlanFormatError(f"{where}.{key}: expected a finite number, found {v!r}")
-    return float(v)
-
-
-def _get_array(
-    d: dict, key: str, where: str, ndim: int, shape: tuple[int | None, ...] | None = None
-) -> NDArray[np.float64]:
-    if key not in d:
-        raise PlanFormatError(f"{where}.{key}: missing field")
-    v = d[key]
-    try:
-        if not isinstance(v, list) or _has_bool(v):
-            raise TypeError
-        a = np.array(v, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise PlanFormatError(
-            f"{where}.{key}: expected a {ndim}-D array of numbers, found {v!r:.60}"
-        ) from None
-    if a.ndim != ndim and not (a.size == 0 and ndim == 2 and shape is not None):
-        raise PlanFormatError(f"{where}.{key}: expected a {ndim}-D array, found shape {a.shape}")
-    if a.size == 0 and ndim == 2 and shape is not None:
-        a = a.reshape(0, shape[1] if shape[1] is not None else 0)
-    if shape is not None and any(s is not None and s != n for s, n in zip(shape, a.shape, strict=True)):
-        raise PlanFormatError(f"{where}.{key}: expected shape {shape}, found {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise PlanFormatError(f"{where}.{key}: non-finite values")
-    return a
-
-
-def _has_bool(v: Any) -> bool:
-    if isinstance(v, bool):
-        return True
-    if isinstance(v, list):
-        return any(_has_bool(x) for x in v)
-    return False
-
-
-def _jsonable(x: Any, where: str) -> Any:
-    """Convert numpy scalars/arrays and tuples to JSON-native values; reject non-finite floats."""
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v, f"{where}.{k}") for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v, f"{where}[{i}]") for i, v in enumerate(x)]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist(), where)
-    if isinstance(x, np.generic):
-        return _jsonable(x.item(), where)
-    if isinstance(x, float) and not math.isfinite(x):
-        raise PlanFormatError(f"{where}: non-finite value {x!r} cannot be written to JSON")
-    if isinstance(x, pathlib.PurePath):
-        return str(x)
-    if x is None or isinstance(x, (bool, int, float, str)):
-        return x
-    raise PlanFormatError(f"{where}: value of type {type(x).__name__} cannot be written to JSON")
 
 
 # ----------------------------------------------------------------------------------------------- Plan
@@ -455,8 +336,8 @@ class Plan:
             PlanFormatError: a field holds a non-finite number or a value JSON cannot represent, or an
                 unknown status, method or step kind (a file `from_dict` would refuse).
         """
-        _check_choice(self.status, PLAN_STATUSES, "plan.status")
-        _check_choice(self.method, PLAN_METHODS, "plan.method")
+        check_choice(self.status, PLAN_STATUSES, "plan.status")
+        check_choice(self.method, PLAN_METHODS, "plan.method")
         d = {
             "schema_version": self.schema_version,
             "fingers": list(self.fingers),
@@ -473,7 +354,7 @@ class Plan:
             "goal_T_palm_object": self.goal_T_palm_object.tolist(),
             "steps": [s.to_dict(f"steps[{i}]") for i, s in enumerate(self.steps)],
         }
-        return _jsonable(d, "plan")
+        return jsonable(d, "plan")
 
     @classmethod
     def from_dict(cls, d: Any) -> Plan:
@@ -487,34 +368,34 @@ class Plan:
                 "steps[3].q").
         """
         w = "plan"
-        d = _require_mapping(d, w, _PLAN_FIELDS)
+        d = require_mapping(d, w, _PLAN_FIELDS)
         version = _check_schema_version(d)
-        steps_raw = _get(d, "steps", w, list)
+        steps_raw = get_field(d, "steps", w, list)
         steps = tuple(PlanStep.from_dict(s, f"steps[{i}]", version) for i, s in enumerate(steps_raw))
-        fingers = _get(d, "fingers", w, list)
+        fingers = get_field(d, "fingers", w, list)
         if not all(isinstance(f, str) for f in fingers):
             raise PlanFormatError(f"fingers: expected a list of names, found {fingers!r:.60}")
-        timing = _get(d, "timing", w, dict)
+        timing = get_field(d, "timing", w, dict)
         for k, v in timing.items():
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 raise PlanFormatError(f"timing.{k}: expected a number, found {v!r:.60}")
-        iterations = _get(d, "iterations", w, int)
+        iterations = get_field(d, "iterations", w, int)
         if isinstance(iterations, bool) or iterations < 0:
             raise PlanFormatError(f"iterations: expected a non-negative integer, found {iterations!r}")
         return cls(
             steps=steps,
-            goal_contacts_object=_get_array(d, "goal_contacts_object", w, 2, (None, 3)),
-            goal_T_palm_object=_get_array(d, "goal_T_palm_object", w, 2, (4, 4)),
+            goal_contacts_object=get_array(d, "goal_contacts_object", w, 2, (None, 3)),
+            goal_T_palm_object=get_array(d, "goal_T_palm_object", w, 2, (4, 4)),
             fingers=tuple(fingers),
-            hand_spec=_get(d, "hand_spec", w, dict),
-            object_spec=_get(d, "object_spec", w, dict),
-            method=_get_choice(d, "method", w, PLAN_METHODS),
-            status=_get_choice(d, "status", w, PLAN_STATUSES),
-            status_detail=_get(d, "status_detail", w, str),
+            hand_spec=get_field(d, "hand_spec", w, dict),
+            object_spec=get_field(d, "object_spec", w, dict),
+            method=get_choice(d, "method", w, PLAN_METHODS),
+            status=get_choice(d, "status", w, PLAN_STATUSES),
+            status_detail=get_field(d, "status_detail", w, str),
             iterations=iterations,
-            iteration_errors=_get_array(d, "iteration_errors", w, 1),
+            iteration_errors=get_array(d, "iteration_errors", w, 1),
             timing=dict(timing),
-            options=_get(d, "options", w, dict),
+            options=get_field(d, "options", w, dict),
             schema_version=SCHEMA_VERSION,
         )
 
@@ -540,7 +421,7 @@ class Plan:
         """
         path = pathlib.Path(path)
         try:
-            return cls.from_dict(_read_json(path))
+            return cls.from_dict(read_json(path))
         except PlanFormatError as e:
             raise PlanFormatError(f"{path}: {e}") from None
 
@@ -561,38 +442,3 @@ def _check_schema_version(d: dict) -> int:
             + ("written by a newer version of regrasp_casadi: upgrade it to read this plan)" if newer
                else "written by another version of regrasp_casadi)"))
     return version
-
-
-# ------------------------------------------------------------------------------------------ JSON text
-def _read_json(path: pathlib.Path) -> Any:
-    """The JSON document in `path` (UTF-8, no NaN/Infinity, no duplicate keys).
-
-    Raises:
-        PlanFormatError: without the file name (the caller adds it).
-    """
-    try:
-        data = path.read_bytes()
-    except OSError as e:
-        raise PlanFormatError(f"cannot read plan file: {e.strerror or e}") from None
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as e:
-        raise PlanFormatError(f"not a UTF-8 text file (byte {e.start}: {e.reason})") from None
-    try:
-        return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_reject_duplicates)
-    except ValueError as e:  # json.JSONDecodeError, or NaN / Infinity from `_reject_constant`
-        raise PlanFormatError(f"not valid JSON: {e}") from None
-
-
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"non-finite number {name} is not allowed in a plan file")
-
-
-def _reject_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-    """`object_pairs_hook` for `json.loads`: a dict, or `PlanFormatError` for a key given twice."""
-    d: dict[str, Any] = {}
-    for k, v in pairs:
-        if k in d:
-            raise PlanFormatError(f"duplicate key {k!r} in a JSON object")
-        d[k] = v
-    return d

@@ -17,10 +17,13 @@ from typing import TYPE_CHECKING, ClassVar, Literal, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.certificates import GRAVITY, Certificate
+from regrasp_casadi.certified_round import certified_round
 from regrasp_casadi.constants import ZETA
 from regrasp_casadi.final_moves import FinalMoves, decide_status, pose_distance, run_final_moves
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.grasp import require_grasp
+from regrasp_casadi.holding import STABILITY_KINDS, Holding, HoldingOptions
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.plan import Plan, PlanStep
@@ -58,11 +61,25 @@ class PlannerOptions:
     """Largest number of gait/reposing iterations (paper: 50)."""
     gait: tuple[str, ...] | None = None
     """Gait pattern P (finger order); None: the paper's rule (see `gait_pattern`)."""
-    gait_order: Literal["pattern", "stability"] = "pattern"
-    """"pattern": the fingers of P in its order (the paper); "stability": each next gait is the finger of
-    P, not yet moved in this iteration, whose lift leaves the other fingers with the largest
-    force-closure margin (`stability.holding_quality`, μ = 0.5) — an answer to the paper's open
-    problems of gait order and grasp stability."""
+    gait_order: Literal["pattern", "stability", "search"] = "pattern"
+    """"pattern": the fingers of P in its order (the paper; with `stability` on, the next finger of P
+    whose lift is certified); "stability": each next gait is the finger of P, not yet moved in this
+    iteration, whose lift leaves the other fingers with the largest force-closure margin
+    (`stability.holding_quality`, μ = 0.5); "search" (needs `stability` on): the certified lift with
+    the best progress + margin score (`_Run.search_score`)."""
+    stability: Literal["force_closure", "gravity", "none"] = "force_closure"
+    """The certificate every step must have (`holding`): "force_closure" of the fingers that hold the
+    object, "gravity" (they hold its weight, `gravity_palm` × `object_mass`), or "none" (the paper: no
+    stability test, the plans of the paper's algorithm). With a certificate, a finger whose lift is
+    not certified waits for a later turn of the round or slides (`holding.slide`), and every step stores
+    its certificate (`PlanStep.certificate`)."""
+    gravity_palm: tuple[float, float, float] = (0.0, 0.0, -GRAVITY)
+    """Gravitational acceleration in the palm frame, m/s² (stability "gravity")."""
+    object_mass: float | None = None
+    """The object's mass, kg (stability "gravity"; None: mesh volume × `holding.density`); a problem
+    file states it as `object.mass` (`RegraspProblem.object_mass`)."""
+    holding: HoldingOptions = field(default_factory=HoldingOptions)
+    """The stability checks' and sliding steps' options (μ, margins, slide step, lookahead)."""
     final_move: bool = True
     """Finish with in-grasp moves to the desired object pose (Algorithm 1, last lines; `final_moves`:
     each accepted move brings the object closer to it)."""
@@ -105,12 +122,18 @@ class PlannerOptions:
         "tau": ("finger_gait", "in_grasp"),
         "print_level": ("finger_gait", "in_grasp"),
         "self_clearance": ("finger_gait", "in_grasp"),
+        "mu": ("holding",),
+        "max_normal_force": ("holding",),
+        "min_margin": ("holding",),
+        "slide": ("holding",),
+        "lookahead": ("holding",),
     }
     """Keyword overrides that set fields of the NLPs' options: name → the sub-options that get it."""
 
     def __post_init__(self) -> None:
         if self.gait is not None:  # a list from the CLI or JSON: stored as a tuple
             object.__setattr__(self, "gait", tuple(self.gait))
+        object.__setattr__(self, "gravity_palm", tuple(float(g) for g in self.gravity_palm))
 
     def with_overrides(self, **overrides) -> PlannerOptions:
         """A copy with `overrides` applied: this class's own fields (``method="sd"``, ``max_iters=5``,
@@ -136,6 +159,7 @@ class PlannerOptions:
         as written into `Plan.options`."""
         opts = asdict(self)
         opts["gait"] = list(opts["gait"]) if opts["gait"] is not None else None
+        opts["gravity_palm"] = list(opts["gravity_palm"])
         return opts
 
 
@@ -209,11 +233,17 @@ class _Run:
         self.solves = {"opt1": 0, "opt2": 0}
         self.failures: list[str] = []  # rejected solves of the current iteration ("<what>: IPOPT <status>")
         self.com, self.length = torque_reference(self.obj.mesh)  # of the stability-aware gait order
+        self.holding = None if options.stability == "none" else Holding(
+            self.hand, self.obj, options.stability, options.holding, options.object_mass,
+            options.gravity_palm)
+        """The stability checks (None: stability "none")."""
         self.q = np.asarray(grasp0.q, dtype=float)
         self.T_palm_object = np.asarray(grasp0.T_palm_object, dtype=float)
-        step = self.add_step("initial", None, "", 0.0)
+        step = self.add_step("initial", None, "", 0.0, self.grasp_certificate())
         self.errors = [float(np.mean(step.contact_error))]  # mean contact error after each iteration
         self.iterations = 0
+        self.stalled = 0
+        """Iterations since the largest contact error last dropped (`_ProgressWatch.stalled`)."""
         self.gait = options.gait or gait_pattern(self.hand, step.contacts_object, self.goal_contacts)
         self.gait_nlps = {f: self.gait_nlp(f) for f in self.gait}
         self.svd_nlp = self.in_grasp_nlp("svd")  # SVD reposing, stall escape and final moves
@@ -248,16 +278,43 @@ class _Run:
         """Tip-sphere centres (m, 3) of the current grasp, object frame."""
         return (self.hand.tip_positions(self.q) - self.T_palm_object[:3, 3]) @ self.T_palm_object[:3, :3]
 
-    def add_step(self, kind: str, finger: str | None, status: str, solve_time: float) -> PlanStep:
-        """Append the current grasp as a step of `kind`, with its contacts and contact errors."""
+    def add_step(self, kind: str, finger: str | None, status: str, solve_time: float,
+                 certificate: Certificate | None = None) -> PlanStep:
+        """Append the current grasp as a step of `kind`, with its contacts, contact errors and the
+        certificate of its holding set (None without stability)."""
         contacts, _ = self.obj.closest_points(self.tips_object())
         error = np.linalg.norm(contacts - self.goal_contacts, axis=1)
         step = PlanStep(kind=kind, finger=finger, q=np.array(self.q, dtype=float),
                         T_palm_object=np.array(self.T_palm_object, dtype=float),
                         contacts_object=np.asarray(contacts, dtype=float), contact_error=error,
-                        solver_status=status, solve_time=float(solve_time))
+                        solver_status=status, solve_time=float(solve_time),
+                        certificate=None if certificate is None else certificate.to_dict())
         self.steps.append(step)
         return step
+
+    def grasp_certificate(self, q: NDArray | None = None, T_palm_object: NDArray | None = None
+                          ) -> Certificate | None:
+        """The certificate of every finger holding the object in the grasp (default: the current one);
+        None without stability."""
+        if self.holding is None:
+            return None
+        return self.holding.grasp(self.q if q is None else q,
+                                  self.T_palm_object if T_palm_object is None else T_palm_object)
+
+    def uncertified(self, q: NDArray, T_palm_object: NDArray) -> str:
+        """Why an in-grasp move to the grasp (q, T_palm_object) would not be certified, "" when it would
+        (always "" without stability): its grasp has no certificate, or a contact slips on the object
+        by more than `HoldingOptions.max_contact_slip` (the certificate is of the contacts it ends with)."""
+        if self.holding is None:
+            return ""
+        cert = self.grasp_certificate(q, T_palm_object)
+        if not self.holding.certified(cert):
+            return f"its grasp is not certified ({cert.detail})"
+        contacts, _ = self.holding.contacts(q, T_palm_object)
+        slip = np.linalg.norm(contacts - self.steps[-1].contacts_object, axis=1)
+        if np.max(slip) > self.holding.options.max_contact_slip:
+            return f"a contact slips {np.max(slip) * 1e3:.2f} mm on the object"
+        return ""
 
     def largest_error(self) -> float:
         """The largest contact error of the last step, m."""
@@ -266,7 +323,11 @@ class _Run:
     # ----------------------------------------------------------------------- Algorithm 1, named steps
     def gait_round(self) -> None:
         """One finger gait (OPT1) for each finger of the gait pattern not yet at its goal, in the
-        pattern's order or the stability order; a rejected gait leaves the finger where it is."""
+        pattern's order or the stability order; a rejected gait leaves the finger where it is. With
+        stability on, only certified moves (`certified_round.certified_round`)."""
+        if self.holding is not None:
+            certified_round(self)
+            return
         todo = list(self.gait)
         while todo:
             finger = todo.pop(0) if self.options.gait_order == "pattern" else self._most_stable_gait(todo)
@@ -313,13 +374,16 @@ class _Run:
         self.timing["opt2"] += res.solve_time
         self.solves["opt2"] += 1
         goal = self.T_palm_object_goal
+        bad = self.uncertified(res.q, res.T_palm_object) if res.success else ""
         if res.success and escape and (pose_distance(res.T_palm_object, goal, self.obj)
                                        >= pose_distance(self.T_palm_object, goal, self.obj)):
             self.failures.append(f"reposing towards the desired pose at step {len(self.steps)} would not "
                                  f"bring the object closer; the object stays")
-        elif res.success:
+        elif res.success and not bad:
             self.q, self.T_palm_object = res.q, res.T_palm_object
-            self.add_step("repose", None, res.status, res.solve_time)
+            self.add_step("repose", None, res.status, res.solve_time, self.grasp_certificate())
+        elif bad:  # the object stays where it is
+            self.failures.append(f"reposing at step {len(self.steps)} rejected: {bad}")
         else:  # the object stays where it is
             self.failures.append(f"reposing at step {len(self.steps)} rejected by the exact checks "
                                  f"(clearance {res.min_clearance * 1e3:.3f} mm, slip "
@@ -363,6 +427,10 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     if problems:
         return _make_plan(grasp0, grasp_goal, options, t_start, None, "invalid_input", problems)
     run = _Run(grasp0, grasp_goal, options, _DEFAULT_CACHE if cache is None else cache)
+    if run.holding is not None and not run.holding.certified(Certificate.from_dict(run.steps[0].certificate)):
+        return _make_plan(grasp0, grasp_goal, options, t_start, run, "invalid_input",
+                          f"the initial grasp is not certified ({run.steps[0].certificate['detail']}); "
+                          f"plan with stability='none' to plan without a stability certificate")
     with deferred_interrupts() as stop:
         return _iterate(grasp0, grasp_goal, options, t_start, run, progress, stop)
 
@@ -375,6 +443,7 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
     while run.largest_error() > options.zeta and run.iterations < options.max_iters:
         run.failures.clear()
         n_steps_before = len(run.steps)
+        run.stalled = watch.stalled
         run.gait_round()
         if run.largest_error() > options.zeta:
             run.repose(escape=watch.escape)
@@ -431,6 +500,20 @@ def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_star
     return plan
 
 
+def _stability_problem(options: PlannerOptions) -> str:
+    """Why the stability options cannot be planned with ("" when they can)."""
+    if options.stability not in STABILITY_KINDS:
+        return f"unknown stability {options.stability!r} (use {', '.join(map(repr, STABILITY_KINDS))})"
+    if options.gait_order == "search" and options.stability == "none":
+        return "gait_order 'search' searches over certified gaits: it needs stability on"
+    if options.stability == "gravity" and not (np.all(np.isfinite(options.gravity_palm))
+                                                and np.linalg.norm(options.gravity_palm) > 0):
+        return f"gravity_palm must be a non-zero acceleration (m/s²), got {options.gravity_palm}"
+    if options.object_mass is not None and not options.object_mass > 0:
+        return f"object_mass must be > 0 kg, got {options.object_mass}"
+    return ""
+
+
 def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> str:  # noqa: PLR0911
     """Why the input cannot be planned ("" when it can): a chain of checks, each returning its message
     (hence the returns beyond PLR0911's limit)."""
@@ -442,8 +525,10 @@ def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> s
         return "the initial and desired grasps use different objects"
     if options.method not in ("svd", "sd"):
         return f"unknown method {options.method!r} (use 'svd' or 'sd')"
-    if options.gait_order not in ("pattern", "stability"):
-        return f"unknown gait_order {options.gait_order!r} (use 'pattern' or 'stability')"
+    if options.gait_order not in ("pattern", "stability", "search"):
+        return f"unknown gait_order {options.gait_order!r} (use 'pattern', 'stability' or 'search')"
+    if _stability_problem(options):
+        return _stability_problem(options)
     if options.gait is not None:
         unknown = [f for f in options.gait if f not in grasp0.hand.fingers]
         if unknown:

@@ -56,6 +56,8 @@ _PRIMITIVE_DIMENSIONS = {  # the keys a problem file must give for each primitiv
 }
 _PRIMITIVES = tuple(_PRIMITIVE_DIMENSIONS)  # = objects.PRIMITIVES (tested)
 _MESH_KEYS = ("mesh", "scale", "sha256", "threshold", "max_planes_per_piece", "hull_tolerance")
+_OBJECT_DATA_KEYS = ("mass",)
+"""Keys of the object section that describe the object, not its geometry (kept out of its spec)."""
 
 
 class _Ctx:
@@ -226,11 +228,21 @@ def _load_model(ctx: _Ctx, m: dict, base_dir: pathlib.Path) -> Hand:
     return Hand.from_urdf(hand.urdf_path, {f: hand.tip_links[f] for f in fingers})
 
 
+def _object_mass(ctx: _Ctx, v: Any) -> float | None:
+    """The object section's optional `mass`, kg (a positive number), or None."""
+    if not isinstance(v, dict) or "mass" not in v:
+        return None
+    if not (_is_number(v["mass"]) and v["mass"] > 0):
+        raise ctx.error("object.mass", f"expected a positive number (kg), got {v['mass']!r}")
+    return float(v["mass"])
+
+
 def _load_object(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> ObjectModel:
     from regrasp_casadi.objects import ObjectModel
 
     if not isinstance(v, dict):
         raise ctx.error("object", f"expected a mapping (primitive: ... or mesh: ...), got {type(v).__name__}")
+    v = {k: x for k, x in v.items() if k not in _OBJECT_DATA_KEYS}
     if ("primitive" in v) == ("mesh" in v):
         raise ctx.error("object", "give exactly one of 'primitive' or 'mesh'")
     if "mesh" in v:
@@ -309,6 +321,9 @@ class RegraspProblem:
     """Desired grasp (contacts on the surface + desired object pose; joints optional)."""
     raw: dict
     """The parsed YAML document as read."""
+    object_mass: float | None = None
+    """The object's mass from the file's `object.mass`, kg (None: not stated; the planner's gravity
+    certificate then uses the mesh volume × density, `certificates.object_mass`)."""
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> RegraspProblem:
@@ -340,6 +355,7 @@ class RegraspProblem:
         base_dir = p.resolve().parent
         hand = _load_hand(ctx, raw["hand"], base_dir)
         obj = _load_object(ctx, raw["object"], base_dir)
+        mass = _object_mass(ctx, raw["object"])
 
         g0 = _mapping(ctx, "grasp0", raw["grasp0"], ("joints", "T_palm_object"), ("joints", "T_palm_object"))
         q0 = _joints(ctx, "grasp0.joints", g0["joints"], hand)
@@ -354,7 +370,7 @@ class RegraspProblem:
         qg = _joints(ctx, "grasp_goal.joints", gg["joints"], hand) if "joints" in gg else None
         grasp_goal = _grasp(ctx, "grasp_goal",
                             lambda: Grasp.from_contacts(hand, obj, contacts, Tg, q=qg))
-        return cls(name, description, p, hand, obj, grasp0, grasp_goal, raw)
+        return cls(name, description, p, hand, obj, grasp0, grasp_goal, raw, mass)
 
     def to_yaml_dict(self, base_dir: str | os.PathLike | None = None) -> dict:
         """The problem as a YAML-ready dict (the schema `load` reads; floats round-trip exactly).
@@ -377,6 +393,8 @@ class RegraspProblem:
             raise ProblemFileError(
                 f"object {self.obj.name!r} has no file or primitive spec; save its mesh to a file first"
             )
+        if self.object_mass is not None:
+            obj_out["mass"] = float(self.object_mass)
         g0, gg = self.grasp0, self.grasp_goal
         if g0.q is None:
             raise ProblemFileError("grasp0 has no joint angles; a problem file needs them")

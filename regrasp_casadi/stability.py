@@ -64,13 +64,13 @@ def primitive_wrenches(
     n = n / np.linalg.norm(n, axis=1, keepdims=True)
     mu_i = contact_mu(mu, len(c))
     phi = 2.0 * np.pi * np.arange(n_edges) / n_edges
-    wrenches = []
-    for ci, ni, mui in zip(c, n, mu_i, strict=True):
-        t1, t2 = tangent_basis(ni)
-        for ph in phi if mui > 0 else phi[:1]:
-            f = -ni + mui * (np.cos(ph) * t1 + np.sin(ph) * t2)
-            wrenches.append(np.concatenate([f, np.cross(ci - center, f) / length]))
-    return np.array(wrenches).reshape(-1, 6)
+    cos, sin = np.cos(phi)[None, :, None], np.sin(phi)[None, :, None]
+    t = np.array([tangent_basis(ni) for ni in n]).reshape(-1, 2, 3)  # (m, 2, 3)
+    f = -n[:, None, :] + mu_i[:, None, None] * (cos * t[:, None, 0, :] + sin * t[:, None, 1, :])  # (m, e, 3)
+    torque = np.cross(c[:, None, :] - center, f) / length
+    keep = np.ones((len(c), n_edges), bool)
+    keep[mu_i == 0, 1:] = False  # a frictionless contact: the one force −n_i
+    return np.concatenate([f, torque], axis=2)[keep].reshape(-1, 6)
 
 
 def torque_scale(contacts: NDArray[np.float64], center: NDArray[np.float64] | None,

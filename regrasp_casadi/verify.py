@@ -15,11 +15,15 @@ order. At every step:
   d(centre) − radius ≥ `min_clearance`;
 * the stored contacts equal the exact closest points of the tip centres (≤ `contact_consistency_tol`),
   and the stored contact errors equal the recomputed distances to the goal;
-* gait steps: only the named finger's joints move, the object does not, and the tip centre moves at
-  most `eta`;
+* gait and slide steps: only the named finger's joints move, the object does not, and the tip centre
+  moves at most `eta`;
+* slide steps: the tip on the surface (≤ `surface_tol`) along the joints' linear path (`slide_path`);
 * repose / final steps: each finger's contact on the object moves at most `max_slip` (slip);
 * no self-collision (`self_clearance`; `regrasp_casadi.self_collision_checks`): sphere pairs of two fingers
   or a finger and the palm, and the link meshes of different fingers (python-fcl, `link_meshes`);
+* stability (`unstable_gait`, `verify_stability`): the fingers holding the object during the step have a
+  certificate of the plan's kind (`options["stability"]`), recomputed with verify's μ and force bound
+  (a metric only, "uncertified_steps", for a plan made without one);
 * the plan's claims: a "converged" plan's last step has max contact error ≤ `zeta`.
 
 A new check is one function `check_x(ctx, step_index, step) -> list[Finding]` and one row of
@@ -45,10 +49,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi import constants
+from regrasp_casadi.certificates import MAX_NORMAL_FORCE
 from regrasp_casadi.grasp_metrics import slip_between
 from regrasp_casadi.self_collision_checks import check_self_collision, check_self_collision_mesh
-from regrasp_casadi.stability import holding_quality, torque_reference
+from regrasp_casadi.stability import torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
+from regrasp_casadi.verify_report import VerifyReport, Violation
+from regrasp_casadi.verify_stability import (
+    StabilitySetting,
+    check_slide_path,
+    check_unstable_gait,
+    record_holding_quality,
+    stability_metrics,
+    stability_setting,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
@@ -73,89 +87,6 @@ DEFAULT_ZETA = constants.ZETA
 """Convergence threshold verify judges by unless told otherwise (DESIGN.md: 6 mm), m."""
 
 
-@dataclass(frozen=True)
-class Violation:
-    """One failed check."""
-
-    step: int
-    """Index into `plan.steps` (-1: the plan as a whole)."""
-    check: str
-    """Which check failed (one of `CHECKS`)."""
-    who: str
-    """The joint, finger or collision-sphere label concerned ("" for the whole step)."""
-    amount: float
-    """The measured value (m or rad; for clearance the signed clearance, negative = penetration)."""
-    limit: float
-    """The bound it violates (same unit)."""
-    message: str
-    """Readable explanation."""
-
-
-@dataclass(frozen=True)
-class VerifyReport:
-    """Result of `verify`: `ok` is True iff there is no violation."""
-
-    ok: bool
-    """True iff `violations` is empty."""
-    violations: tuple[Violation, ...]
-    """Every failed check, in step order (within a step, in `CHECK_TABLE` order)."""
-    metrics: dict[str, Any]
-    """Figures of the plan: "min_clearance" (m) and "min_clearance_at" ({"step", "who"}), the same for
-    self-collision ("min_self_clearance", "min_self_clearance_at", sphere model), "max_mesh_penetration"
-    (m) and "mesh_check" (what the mesh check read, or why it was skipped),
-    "max_surface_error", "max_gait_step", "max_slip", "final_avg_error", "final_max_error" (m, exact),
-    "n_steps", and the stability metric (not a check): "min_holding_quality" (least Ferrari–Canny margin
-    of the fingers holding the object during a gait, see `stability.holding_quality`; NaN without
-    gaits), "min_holding_quality_at" and "unstable_gaits" (gaits whose holding fingers are not in force
-    closure). "tolerances": the bounds verify judged by (`Tolerances` as a dict, m / rad);
-    "plan_options": the options the plan says it was planned with (reported, never obeyed)."""
-
-    def summary(self, max_violations: int = 20) -> str:
-        """Readable multi-line text: verdict, metrics in mm, the first `max_violations` violations."""
-        m = self.metrics
-        where = m.get("min_clearance_at") or {}
-        lines = [
-            f"verify: {'OK' if self.ok else 'FAILED'} ({len(self.violations)} violations, "
-            f"{m.get('n_steps', 0)} steps)",
-            f"  min clearance {_mm(m.get('min_clearance'))} mm"
-            + (f" (step {where.get('step')}, {where.get('who')})" if where else ""),
-            f"  max surface error {_mm(m.get('max_surface_error'))} mm, max gait step "
-            f"{_mm(m.get('max_gait_step'))} mm, max slip {_mm(m.get('max_slip'))} mm",
-            f"  final contact error avg {_mm(m.get('final_avg_error'))} mm, "
-            f"max {_mm(m.get('final_max_error'))} mm",
-            f"  self-collision: min sphere clearance {_mm(m.get('min_self_clearance'))} mm"
-            + (f" (step {m['min_self_clearance_at']['step']}, {m['min_self_clearance_at']['who']})"
-               if m.get("min_self_clearance_at") else "")
-            + f"; mesh check: {m.get('mesh_check') or 'n/a'}",
-            f"  stability (metric): {m.get('unstable_gaits', 0)} gaits whose other fingers are not in force "
-            f"closure (μ = {(m.get('tolerances') or {}).get('mu', constants.MU):g}); least margin ε "
-            f"{m.get('min_holding_quality', float('nan')):.4f}",
-        ]
-        tol, opts = m.get("tolerances") or {}, m.get("plan_options") or {}
-        if tol:
-            lines.append(f"  judged with zeta {_mm(tol.get('zeta'))} mm, eta {_mm(tol.get('eta'))} mm "
-                         f"(the plan's own: zeta {_mm(opts.get('zeta'))} mm, eta {_mm(opts.get('eta'))} mm)")
-        for v in self.violations[:max_violations]:
-            lines.append(f"  step {v.step}: {v.check} [{v.who}]: {v.message}")
-        if len(self.violations) > max_violations:
-            lines.append(f"  ... and {len(self.violations) - max_violations} more")
-        return "\n".join(lines)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict: ok, violations (list of dicts), metrics."""
-        return {
-            "ok": self.ok,
-            "violations": [asdict(v) for v in self.violations],
-            "metrics": dict(self.metrics),
-        }
-
-
-def _mm(x: Any) -> str:
-    if isinstance(x, bool) or not isinstance(x, (int, float, np.floating, np.integer)):
-        return "n/a"
-    return "n/a" if not np.isfinite(x) else f"{x * 1e3:.3f}"
-
-
 # ---------------------------------------------------------------------------------------------- context
 @dataclass(frozen=True)
 class Tolerances:
@@ -177,7 +108,9 @@ class Tolerances:
     """Allowed gap between a stored contact and the exact closest point of its tip (and between stored
     and recomputed contact errors), m."""
     mu: float = constants.MU
-    """Friction coefficient of the stability metric (not a check)."""
+    """Friction coefficient of the stability check and metrics."""
+    max_normal_force: float = MAX_NORMAL_FORCE
+    """Bound on each contact's normal force of the gravity certificate, N."""
     self_clearance: float | None = 0.0
     """Required surface distance of every self-collision sphere pair, m (None: no self-collision check)."""
 
@@ -211,11 +144,12 @@ class VerifyContext:
             "min_clearance": float("inf"), "min_clearance_at": None, "max_surface_error": 0.0,
             "max_gait_step": 0.0, "max_slip": 0.0, "final_avg_error": float("nan"),
             "final_max_error": float("nan"), "n_steps": len(plan.steps),
-            "min_holding_quality": float("inf"), "min_holding_quality_at": None, "unstable_gaits": 0,
-            "tolerances": asdict(tol), "plan_options": dict(plan.options),
+            **stability_metrics(plan), "tolerances": asdict(tol), "plan_options": dict(plan.options),
             "min_self_clearance": float("inf"), "min_self_clearance_at": None, "max_mesh_penetration": 0.0,
             "mesh_check": "",
         }
+        self.stability: StabilitySetting = stability_setting(plan, obj)
+        """What the stability check judges (`verify_stability.stability_setting`)."""
 
     @functools.cached_property
     def exact(self) -> ExactGeometry:
@@ -286,10 +220,11 @@ def check_structure(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]
         bad.append(f"q has shape {step.q.shape}, expected ({n},)")
     if step.contacts_object.shape != (m, 3) or step.contact_error.shape != (m,):
         bad.append(f"contacts/errors have shapes {step.contacts_object.shape}/{step.contact_error.shape}")
-    if step.kind not in ("initial", "gait", "repose", "final") or (k == 0) != (step.kind == "initial"):
+    kinds = ("initial", "gait", "repose", "final", "slide")
+    if step.kind not in kinds or (k == 0) != (step.kind == "initial"):
         bad.append(f"kind {step.kind!r} at step {k} (only step 0 is 'initial')")
-    if step.kind == "gait" and step.finger not in ctx.fingers:
-        bad.append(f"gait of unknown finger {step.finger!r}")
+    if step.kind in ("gait", "slide") and step.finger not in ctx.fingers:
+        bad.append(f"{step.kind} of unknown finger {step.finger!r}")
     return [Finding("", 0.0, 0.0, "; ".join(bad))] if bad else []
 
 
@@ -360,31 +295,31 @@ def check_contact_error(ctx: VerifyContext, k: int, step: PlanStep) -> list[Find
 
 
 def check_gait_other_joints(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
-    """A gait moves only the joints of its finger."""
-    if k == 0 or step.kind != "gait":
+    """A gait or slide moves only the joints of its finger."""
+    if k == 0 or step.kind not in ("gait", "slide"):
         return []
     hand, prev = ctx.hand, ctx.plan.steps[k - 1]
     moving = set(int(i) for i in np.asarray(hand.finger_joints[step.finger]).ravel())
     return [Finding(hand.joint_names[i], abs(step.q[i] - prev.q[i]), EXACT_TOL,
-                    f"gait of {step.finger} moved joint {hand.joint_names[i]} "
+                    f"{step.kind} of {step.finger} moved joint {hand.joint_names[i]} "
                     f"by {step.q[i] - prev.q[i]:.3g} rad")
             for i in range(hand.n_joints) if i not in moving and abs(step.q[i] - prev.q[i]) > EXACT_TOL]
 
 
 def check_gait_object_moved(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
-    """The object does not move during a gait."""
-    if k == 0 or step.kind != "gait":
+    """The object does not move during a gait or slide."""
+    if k == 0 or step.kind not in ("gait", "slide"):
         return []
     dT = float(np.max(np.abs(step.T_palm_object - ctx.plan.steps[k - 1].T_palm_object)))
     if dT <= EXACT_TOL:
         return []
     return [Finding(step.finger, dT, EXACT_TOL,
-                    f"object pose changed during the gait of {step.finger} (max |ΔT| = {dT:.3g})")]
+                    f"object pose changed during the {step.kind} of {step.finger} (max |ΔT| = {dT:.3g})")]
 
 
 def check_gait_step(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
-    """The moving tip centre travels at most eta in one gait (metric "max_gait_step")."""
-    if k == 0 or step.kind != "gait":
+    """The moving tip centre travels at most eta in one gait or slide step (metric "max_gait_step")."""
+    if k == 0 or step.kind not in ("gait", "slide"):
         return []
     fi, eta = ctx.fingers.index(step.finger), ctx.tol.eta
     tips = ctx.exact.p_palm_tips
@@ -393,13 +328,14 @@ def check_gait_step(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]
     if step_len <= eta + STEP_TOL:
         return []
     return [Finding(step.finger, step_len, eta,
-                    f"{step.finger} tip moved {step_len * 1e3:.2f} mm in one gait (eta {eta * 1e3:.2f} mm)")]
+                    f"{step.finger} tip moved {step_len * 1e3:.2f} mm in one {step.kind} "
+                    f"(eta {eta * 1e3:.2f} mm)")]
 
 
 def check_slip(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
     """Repose / final steps: every contact stays where it is on the object, within max_slip (metric
     "max_slip")."""
-    if k == 0 or step.kind == "gait":
+    if k == 0 or step.kind in ("gait", "slide"):
         return []
     closest, tol = ctx.exact.p_object_closest, ctx.tol.max_slip
     slip = slip_between(closest[k - 1], closest[k])  # the contacts (closest mesh points) moved on the object
@@ -433,6 +369,8 @@ CHECK_TABLE: tuple[Check, ...] = (
     Check("slip", check_slip),
     Check("self_collision", check_self_collision),
     Check("self_collision_mesh", check_self_collision_mesh),
+    Check("slide_path", check_slide_path),
+    Check("unstable_gait", check_unstable_gait),
     Check("converged_claim", check_converged_claim),
 )
 """Every check, in the order it runs on each step."""
@@ -442,29 +380,13 @@ CHECKS = tuple(c.name for c in CHECK_TABLE)
 
 
 # ---------------------------------------------------------------------------------------------- metrics
-def record_holding_quality(ctx: VerifyContext, k: int, step: PlanStep) -> None:
-    """Stability (a metric, not a check: the paper's method does not guarantee it): force-closure margin
-    of the other fingers, which hold the object while the gait's finger is lifted (at step k − 1)."""
-    if k == 0 or step.kind != "gait":
-        return
-    prev, exact, metrics = ctx.plan.steps[k - 1], ctx.exact, ctx.metrics
-    com, length = ctx.torque_reference
-    eps = holding_quality(exact.p_object_closest[k - 1],
-                          transform_points(inv_T(prev.T_palm_object), exact.p_palm_tips[k - 1]),
-                          ctx.fingers.index(step.finger), com, length, ctx.tol.mu)
-    if eps < metrics["min_holding_quality"]:
-        metrics["min_holding_quality"] = eps
-        metrics["min_holding_quality_at"] = {"step": k, "who": step.finger}
-    metrics["unstable_gaits"] += int(eps <= 0.0)
-
-
 def _record_final_metrics(ctx: VerifyContext) -> None:
     """Final contact errors (exact); NaN for the minima that saw no value (no gait, no sphere)."""
     metrics = ctx.metrics
     err = np.linalg.norm(ctx.exact.p_object_closest[-1] - ctx.plan.goal_contacts_object, axis=1)
     metrics["final_avg_error"] = float(np.mean(err))
     metrics["final_max_error"] = float(np.max(err))
-    for key in ("min_holding_quality", "min_clearance", "min_self_clearance"):
+    for key in ("min_holding_quality", "min_clearance", "min_self_clearance", "min_certificate_margin"):
         if not np.isfinite(metrics[key]):
             metrics[key] = float("nan")
 
@@ -485,6 +407,9 @@ def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regra
     mu: float = constants.MU,
     self_clearance: float | None = 0.0,
     link_meshes: str | Path | None = None,
+    max_normal_force: float = MAX_NORMAL_FORCE,
+    mass: float | None = None,
+    gravity_palm: Any = None,
 ) -> VerifyReport:
     """Check a plan with exact geometry and verify's own tolerances; never raises for a bad plan, reports it.
 
@@ -503,7 +428,10 @@ def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regra
         max_slip: allowed motion of a contact on the object during repose / final steps, m.
         contact_consistency_tol: allowed distance between a stored contact and the exact closest
             point of its tip centre (and between stored and recomputed contact errors), m.
-        mu: friction coefficient of the stability metric (force closure of the holding fingers).
+        mu: friction coefficient of the stability check and metrics (verify's, never the plan's).
+        max_normal_force: bound on each normal force of the gravity check, N (verify's).
+        mass, gravity_palm: the gravity check's object mass, kg, and gravity (3,), palm frame, m/s²
+            (default: the plan's, as its object spec is; `verify_stability.stability_setting`).
         self_clearance: required surface distance of every self-collision sphere pair (different fingers,
             a finger and the palm), m; None: no self-collision check (spheres nor meshes).
         link_meshes: a URDF with link meshes (same link and joint names as the hand's, e.g. the vendor
@@ -523,8 +451,10 @@ def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regra
     tol = Tolerances(surface_tol=float(surface_tol), min_clearance=float(min_clearance),
                      limit_tol=float(limit_tol), eta=float(eta), zeta=float(zeta), max_slip=float(max_slip),
                      contact_consistency_tol=float(contact_consistency_tol), mu=float(mu),
-                     self_clearance=None if self_clearance is None else float(self_clearance))
+                     self_clearance=None if self_clearance is None else float(self_clearance),
+                     max_normal_force=float(max_normal_force))
     ctx = VerifyContext(plan, hand, obj, tol, link_meshes)
+    ctx.stability = stability_setting(plan, obj, mass, gravity_palm, ctx.metrics)
     problem = _plan_form_problem(ctx)
     if problem:
         return _report([Violation(-1, "structure", "", 0.0, 0.0, problem)], ctx.metrics)

@@ -18,7 +18,8 @@ from regrasp_casadi import cli
 
 HELP_NAMES = {
     None: ["plan", "verify", "view", "grasps", "bench", "demo", "exit codes"],
-    "plan": ["PROBLEM.yaml", "--method", "--out", "--html", "--view", "--max-iters", "--verbose"],
+    "plan": ["PROBLEM.yaml", "--method", "--stability", "--out", "--html", "--view", "--max-iters",
+             "--verbose"],
     "verify": ["PLAN.json", "--all", "--verbose"],
     "view": ["PLAN.json", "--html"],
     "grasps": ["MESH_OR_PROBLEM", "--n", "--seed", "--out"],
@@ -228,7 +229,7 @@ def test_plan_exit_code_follows_status_and_verify(status, verified, code, tmp_pa
     argv = ["plan", str(PROBLEM), "--method", "sd", "--max-iters", "7", "--out", str(out),
             "--html", str(tmp_path / "r.html")]
     assert cli.main(argv) == code
-    assert calls == [{"method": "sd", "max_iters": 7}]
+    assert calls == [{"method": "sd", "max_iters": 7, "stability": "force_closure"}]
     from regrasp_casadi.plan import Plan
 
     assert Plan.load(out).status == status

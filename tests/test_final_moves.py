@@ -89,8 +89,14 @@ class _Run:
     def tips_object(self):
         return transform_points(np.linalg.inv(self.T_palm_object), self.hand.tip_positions(self.q))
 
-    def add_step(self, kind, finger, status, solve_time):
+    def add_step(self, kind, finger, status, solve_time, certificate=None):
         self.steps.append(np.array(self.T_palm_object))
+
+    def grasp_certificate(self):
+        return None
+
+    def uncertified(self, q, T_palm_object):
+        return ""  # no stability (the `stability="none"` run)
 
     def largest_error(self):
         return 0.0

@@ -226,6 +226,26 @@ def test_non_finite_values_refused_on_save(tmp_path):
         bad.save(tmp_path / "x.json")
 
 
+def test_step_certificates_round_trip_and_are_optional(tmp_path):
+    plan = _random_plan()
+    cert = {"kind": "gravity", "ok": True, "margin": 1.75, "forces": [[0.1, -0.0, 2.0]] * 4,
+            "detail": "holds"}
+    steps = (plan.steps[0], replace(plan.steps[1], certificate=cert), *plan.steps[2:])
+    certified = replace(plan, steps=steps)
+    assert certified != plan
+    loaded = Plan.load(certified.save(tmp_path / "c.json"))
+    assert loaded == certified and loaded.steps[1].certificate == cert and loaded.steps[2].certificate is None
+    # a step without one writes no field (the paper's plans keep their files)
+    assert "certificate" not in plan.to_dict()["steps"][1]
+    for bad, pattern in (({**cert, "kind": "wobbly"}, r"steps\[1\]\.certificate\.kind: expected one of"),
+                         ({**cert, "ok": 1}, r"steps\[1\]\.certificate\.ok: expected bool"),
+                         ({**cert, "eps": 0.1}, r"steps\[1\]\.certificate: unknown field 'eps'")):
+        d = certified.to_dict()
+        d["steps"][1]["certificate"] = bad
+        with pytest.raises(PlanFormatError, match=pattern):
+            Plan.from_dict(d)
+
+
 def test_plan_arrays_are_read_only():
     plan = _random_plan()
     with pytest.raises(ValueError):
@@ -251,7 +271,7 @@ def test_vocabularies_are_the_literal_types():
     # every status plan_regrasp returns, plus "interrupted" (Ctrl-C), in a fixed order
     assert PLAN_STATUSES == ("converged", "iteration_limit", "stalled", "solver_failure", "invalid_input",
                              "interrupted", "pose_not_reached")
-    assert STEP_KINDS == ("initial", "gait", "repose", "final")
+    assert STEP_KINDS == ("initial", "gait", "repose", "final", "slide")
     assert PLAN_METHODS == ("svd", "sd")
 
 
@@ -307,8 +327,8 @@ def _edit(doc: dict, keys: tuple, value) -> dict:
                               r"solver_failure, invalid_input, interrupted, pose_not_reached, found 'done'"),
         (("status",), 3, r"plan\.status: expected str, found int 3"),
         (("method",), "pose", r"plan\.method: expected one of svd, sd, found 'pose'"),
-        (("steps", 2, "kind"), "slide", r"steps\[2\]\.kind: expected one of initial, gait, repose, final, "
-                                        r"found 'slide'"),
+        (("steps", 2, "kind"), "roll", r"steps\[2\]\.kind: expected one of initial, gait, repose, final, "
+                                       r"slide, found 'roll'"),
     ],
 )
 def test_unknown_fields_and_values_are_named_with_the_file(tmp_path, keys, value, pattern):
@@ -355,7 +375,7 @@ def test_non_utf8_file_is_a_one_line_error_naming_the_file(tmp_path, data):
 
 def test_unknown_values_are_refused_on_save_and_nothing_is_written(tmp_path):
     plan = _random_plan()
-    steps = (*plan.steps[:-1], replace(plan.steps[-1], kind="slide"))
+    steps = (*plan.steps[:-1], replace(plan.steps[-1], kind="roll"))
     cases = [(replace(plan, status="done"), r"^plan\.status: expected one of converged, "),
              (replace(plan, method="pose"), r"^plan\.method: expected one of svd, sd, found 'pose'"),
              (replace(plan, steps=steps), r"^steps\[4\]\.kind: expected one of initial, ")]
@@ -404,4 +424,4 @@ def test_importing_and_using_plan_loads_no_model_code():
     assert loaded & model_code == set()
     assert {m for m in loaded if m.startswith("regrasp_casadi.")} == {
         "regrasp_casadi.errors", "regrasp_casadi.files", "regrasp_casadi.grasp_metrics",
-        "regrasp_casadi.motion", "regrasp_casadi.plan"}
+        "regrasp_casadi.motion", "regrasp_casadi.plan", "regrasp_casadi.plan_codec"}

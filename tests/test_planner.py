@@ -29,17 +29,39 @@ def box():
     return RegraspProblem.load(BOX_PROBLEM)
 
 
+CERTIFIED_CONVERGE = {"box_rotate", "box_shift"}
+"""The shipped problems the certified planner (the default, stability "force_closure") solves with both
+methods; on the others it stalls before every contact is within ζ (benchmarks/stability.py)."""
+
+
 @pytest.mark.parametrize("method", ["svd", "sd"])
 @pytest.mark.parametrize("path", PROBLEMS, ids=[p.stem for p in PROBLEMS])
-def test_shipped_problem_converges_and_verifies(path, method):
+def test_shipped_problem_plans_hold_the_object_and_verify(path, method):
     problem = RegraspProblem.load(path)
     plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method)
-    assert plan.status == "converged", plan.status_detail
     report = verify(plan, problem.hand, problem.obj)
-    assert report.ok, report.summary()
-    assert np.max(plan.steps[-1].contact_error) <= plan.options["zeta"]
+    assert report.ok, report.summary()  # every step certified (unstable_gait) whether converged or not
+    assert report.metrics["stability_checked"] and report.metrics["stability"] == "force_closure"
+    assert all(s.certificate is not None and s.certificate["ok"] for s in plan.steps)
     kinds = [s.kind for s in plan.steps]
     assert kinds[0] == "initial" and "gait" in kinds
+    if path.stem in CERTIFIED_CONVERGE:
+        assert plan.status == "converged", plan.status_detail
+        assert np.max(plan.steps[-1].contact_error) <= plan.options["zeta"]
+    else:
+        assert plan.status in ("converged", "stalled", "iteration_limit"), plan.status_detail
+
+
+@pytest.mark.slow  # 8 more plans; the default run checks the paper planner in test_stable_planner
+@pytest.mark.parametrize("method", ["svd", "sd"])
+@pytest.mark.parametrize("path", PROBLEMS, ids=[p.stem for p in PROBLEMS])
+def test_the_paper_planner_converges_on_the_shipped_problems(path, method):
+    problem = RegraspProblem.load(path)
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, stability="none")
+    assert plan.status == "converged", plan.status_detail
+    report = verify(plan, problem.hand, problem.obj)
+    assert report.ok, report.summary()  # "unstable_gait" is a metric for the paper's plans
+    assert np.max(plan.steps[-1].contact_error) <= plan.options["zeta"]
 
 
 def _count_nlpsol(monkeypatch) -> list[str]:
@@ -202,7 +224,9 @@ def test_overrides_reach_the_nlp_options():
 
 
 def test_options_are_recorded_by_value_and_take_effect(box, tmp_path):
-    given = PlannerOptions(zeta=0.005, gait=("thumb", "index", "middle", "ring")).with_overrides(eta=0.008)
+    # the paper's planner (no certificate: the thumb lifts first, off three fingers on one face)
+    given = PlannerOptions(zeta=0.005, gait=("thumb", "index", "middle", "ring"),
+                           stability="none").with_overrides(eta=0.008)
     plan = plan_regrasp(box.grasp0, box.grasp_goal, options=given, max_iters=1)
     expected = {**given.to_dict(), "max_iters": 1}
     assert expected["finger_gait"]["eta"] == 0.008

@@ -91,6 +91,17 @@ def test_save_load_round_trip(folder, tmp_path):
     assert again.hand.spec() == problem.hand.spec()
 
 
+def test_the_object_mass_is_read_and_written_and_kept_out_of_the_spec(folder, tmp_path):
+    doc = copy.deepcopy(_valid_doc())
+    assert RegraspProblem.load(_write(folder, doc, "nomass.yaml")).object_mass is None
+    doc["object"]["mass"] = 0.25
+    problem = RegraspProblem.load(_write(folder, doc, "mass.yaml"))
+    assert problem.object_mass == 0.25
+    assert "mass" not in problem.obj.spec  # the geometry's spec: the mass is the problem's
+    again = RegraspProblem.load(problem.save(tmp_path / "mass_copy.yaml"))
+    assert again.object_mass == 0.25 and again.obj.spec == problem.obj.spec
+
+
 def _set(doc, keys, value):
     target = doc
     for k in keys[:-1]:
@@ -131,6 +142,8 @@ def _set(doc, keys, value):
          "grasp_goal: right contact is 2.0 mm off the object surface"),
         (("grasp_goal", "joints"), [0.0], "grasp_goal.joints: expected 6 joint angles"),
         (("description",), 5, "description: expected a string"),
+        (("object", "mass"), -0.2, r"object.mass: expected a positive number \(kg\), got -0.2"),
+        (("object", "mass"), "heavy", r"object.mass: expected a positive number \(kg\), got 'heavy'"),
     ],
 )
 def test_errors_name_file_and_key(folder, keys, value, message):

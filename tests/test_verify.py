@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -209,6 +210,40 @@ def test_checks_are_a_table_of_named_functions(models):
     finally:
         verify_module.CHECK_TABLE = table
     assert [(v.step, v.check, v.amount) for v in report.violations] == [(k, "always", k) for k in range(5)]
+
+
+def test_two_point_contacts_never_hold_a_plan_that_claims_force_closure(models):
+    # two antipodal point contacts cannot resist a torque about the line through them: every step of
+    # the two-finger plan (both tips, or one alone during a gait) is unstable when the plan asks for it
+    hand, obj = models
+    plan = _plan(hand, obj, _valid_specs(hand))
+    paper = verify(plan, hand, obj)
+    assert paper.ok and paper.metrics["stability_checked"] is False
+    assert paper.metrics["uncertified_steps"] == [0, 1, 2, 3, 4]  # a metric for a plan made without
+    claimed = replace(plan, options={**plan.options, "stability": "force_closure"})
+    report = verify(claimed, hand, obj)
+    who = ["", "left", "right", "", ""]
+    assert _found(report) == {(k, "unstable_gait", who[k]) for k in range(5)}
+    assert all(v.amount <= 0.0 for v in report.violations)
+
+
+def test_slide_steps_are_judged_along_their_path(models):
+    hand, obj = models
+    slide = _q(hand, left_slide=-0.006)  # the left tip moves 6 mm down the −x face, on it throughout
+    specs = [("initial", None, _q(hand), tf.box_pose()), ("slide", "left", slide, tf.box_pose())]
+    report = verify(_plan(hand, obj, specs), hand, obj)
+    assert report.ok, report.summary()
+    assert report.metrics["max_slide_path_error"] == pytest.approx(0.0, abs=1e-9)
+    assert report.metrics["max_gait_step"] == pytest.approx(0.006, abs=1e-12)
+    # a "slide" that swings the finger off the face, and one that moves the other finger and the object
+    off = _q(hand, left_base=0.1)
+    moved = _q(hand, left_slide=-0.006, right_slide=0.002)
+    bad = [("initial", None, _q(hand), tf.box_pose()), ("slide", "left", off, tf.box_pose()),
+           ("slide", "left", moved, tf.box_pose(dx=0.001))]
+    found = _found(verify(_plan(hand, obj, bad), hand, obj))
+    assert (1, "slide_path", "left") in found and (1, "tip_surface", "left") in found
+    assert (2, "gait_other_joints", "right_slide") in found and (2, "gait_object_moved", "left") in found
+    assert not any(check == "slip" for _, check, _ in found)  # a slide's own contact moves by design
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,236 @@
+"""The planner's stability checks: the certificate of the fingers that hold the object during a step.
+
+`plan_regrasp` with `PlannerOptions.stability` "force_closure" or "gravity" asks a `Holding` before every
+step whether the fingers that stay on the object hold it, and stores the answer in the step
+(`PlanStep.certificate`). The holding set of a step is:
+
+* a gait of finger r (it lifts off): every other finger, in the grasp it lifts from;
+* a slide of finger r (its tip stays on the surface): every finger, r frictionless (it slides), at the
+  start and at the end of the slide segment;
+* a reposing, a final move, the initial grasp: every finger, in the step's grasp.
+
+The contacts are the exact closest points of the tip-sphere centres (`ObjectModel.closest_points`) and the
+normals point from them to the centres, as `verify` and `certificates.step_certificates` take them, so a
+grasp the planner certifies is the grasp verify recomputes.
+
+Force closure is decided by the Ferrari–Canny margin ε alone (`stability.force_closure_quality`, one
+convex hull): the certificate's LP margin s satisfies s ≥ ε (`certificates`), so ε > `FORCE_CLOSURE_TOL`
+implies the LP verdict; the planner asks for ε ≥ `HoldingOptions.min_margin`, well above it. Gravity
+hold is the full SOCP (`certificates.certify_step`), asked for a weight scale ≥ 1 + `gravity_margin`.
+
+    >>> holding = Holding(hand, obj, "force_closure", HoldingOptions())
+    >>> cert = holding.lift(q, T_palm_object, "thumb")          # the others hold while the thumb lifts
+    >>> holding.certified(cert), cert.margin
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from regrasp_casadi.certificates import (
+    DENSITY,
+    FORCE_CLOSURE_TOL,
+    GRAVITY,
+    MAX_NORMAL_FORCE,
+    Certificate,
+    certify_step,
+    object_mass,
+)
+from regrasp_casadi.constants import MU
+from regrasp_casadi.stability import (
+    FRICTION_EDGES,
+    contact_mu,
+    contact_normals,
+    force_closure_quality,
+    torque_reference,
+)
+
+if TYPE_CHECKING:
+    from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
+
+__all__ = ["StabilityKind", "STABILITY_KINDS", "HoldingOptions", "Holding"]
+
+StabilityKind = Literal["force_closure", "gravity", "none"]
+"""The certificate every step of a plan must have: force closure of the holding contacts, a gravity hold
+of the object's weight, or none (the paper's planner)."""
+
+STABILITY_KINDS: tuple[str, ...] = ("force_closure", "gravity", "none")
+
+
+@dataclass(frozen=True)
+class HoldingOptions:
+    """Knobs of the planner's stability checks and sliding steps; SI units."""
+
+    mu: float = MU
+    """Friction coefficient of the planner's certificates (verify uses its own)."""
+    max_normal_force: float = MAX_NORMAL_FORCE
+    """Bound on each contact's normal force of the gravity certificate, N."""
+    density: float = DENSITY
+    """Object density when the problem states no mass, kg/m³ (mass = mesh volume × density)."""
+    min_margin: float = 1e-3
+    """Force closure: the planner's certified grasps have ε at least this (> `FORCE_CLOSURE_TOL`, so
+    that verify's LP, which is ≥ ε, agrees)."""
+    gravity_margin: float = 0.02
+    """Gravity: the planner's certified grasps hold (1 + this) × the weight."""
+    slide: bool = True
+    """A finger whose lift is not certified may slide along the surface instead (steps of kind
+    "slide", the finger frictionless in their certificate)."""
+    slide_budget: float = 2.0
+    """Largest tip travel of a finger's slides in one round, in gait bounds η (a lifted finger moves at
+    most η; a slide is a sequence of steps of at most `slide_step`, each judged like a gait)."""
+    slide_step: float = 0.002
+    """Longest tip travel of one slide step, m (the plan's steps are its samples)."""
+    slide_tol: float = 0.3e-3
+    """Largest distance of the sliding tip from the surface along a slide step (the joints moving
+    linearly between its ends), m; a longer step is halved until it keeps this."""
+    max_contact_slip: float = 0.9e-3
+    """A reposing or final move whose exact contacts move on the object by more than this is refused,
+    m (its certificate is of the contacts it ends with; verify allows 1 mm of slip)."""
+    lookahead: bool = True
+    """A gait is accepted only where its new contact leaves some finger still to move (this round, else
+    the next) with a certified lift; otherwise the gait is retried with a halved step bound."""
+    lookahead_tries: int = 3
+    """Gait solves per finger with the lookahead (η, η/2, η/4, ...); when none passes, the first is kept."""
+    support_search: bool = True
+    """While some finger can only slide, a lifted finger goes where that slide stays certified
+    (`certified_round._support_target`) rather than straight to its goal."""
+    support_candidates: int = 9
+    """Surface points the support search tries (the first towards the finger's goal)."""
+    search_edges: int = 4
+    """Friction-cone edges of the support search's certificates (an inscribed pyramid: its margin is at
+    most the 8-edge one; the checks that decide a step use `stability.FRICTION_EDGES`)."""
+    support_score: str = "worst"
+    """"best": keep the sliders that can slide and let the best one advance; "worst": raise the worst
+    slider's margin (its contact and further on)."""
+    support_switch: bool = True
+    """While the plan makes no progress (every other `stall_escape` iterations without it), the support
+    search uses the other `support_score`."""
+    support_advance: float = 0.005
+    """How far ahead towards its goal a slider's certificate is tried by the support search, m."""
+
+
+class Holding:
+    """Certificates of the holding sets of candidate steps of one planning run (cached per grasp).
+
+    Args:
+        hand, obj: the run's hand and object.
+        kind: "force_closure" or "gravity".
+        options: the `HoldingOptions`.
+        mass: the object's mass, kg (gravity; None: mesh volume × `options.density`).
+        gravity_palm: (3,) gravitational acceleration in the palm frame, m/s² (gravity).
+    """
+
+    def __init__(self, hand: Hand, obj: ObjectModel, kind: str, options: HoldingOptions,
+                 mass: float | None = None, gravity_palm=(0.0, 0.0, -GRAVITY)):
+        if kind not in ("force_closure", "gravity"):
+            raise ValueError(f"kind: expected 'force_closure' or 'gravity', got {kind!r}")
+        self.hand, self.obj, self.kind, self.options = hand, obj, kind, options
+        self.fingers = tuple(hand.fingers)
+        self.com, self.length = torque_reference(obj.mesh)
+        self.mass = object_mass(obj.mesh, mass, options.density) if kind == "gravity" else None
+        self.gravity_palm = np.asarray(gravity_palm, float).reshape(3)
+        self._grasps: dict[bytes, tuple[NDArray, NDArray]] = {}
+        self._certs: dict[tuple, Certificate] = {}
+        self.evaluations = 0
+        """Certificates computed (cache misses)."""
+
+    # ------------------------------------------------------------------------------------ the checks
+    def lift(self, q: NDArray, T_palm_object: NDArray, finger: str) -> Certificate:
+        """The fingers other than `finger` in the grasp (q (n,) rad, T_palm_object (4, 4))."""
+        hold = tuple(f != finger for f in self.fingers)
+        return self._certificate(q, T_palm_object, hold, (False,) * len(self.fingers))
+
+    def slide(self, q: NDArray, T_palm_object: NDArray, finger: str) -> Certificate:
+        """Every finger in the grasp, `finger` frictionless (it slides)."""
+        return self._certificate(q, T_palm_object, (True,) * len(self.fingers),
+                                 tuple(f == finger for f in self.fingers))
+
+    def grasp(self, q: NDArray, T_palm_object: NDArray) -> Certificate:
+        """Every finger in the grasp."""
+        m = len(self.fingers)
+        return self._certificate(q, T_palm_object, (True,) * m, (False,) * m)
+
+    def certified(self, cert: Certificate) -> bool:
+        """Whether the planner accepts `cert`: ok, with ε ≥ min_margin (force closure) or a weight scale
+        ≥ 1 + gravity_margin (gravity)."""
+        if not cert.ok or not np.isfinite(cert.margin):
+            return False
+        if self.kind == "force_closure":
+            return cert.margin >= self.options.min_margin
+        return cert.margin >= 1.0 + self.options.gravity_margin
+
+    def hypothetical(self, contacts: NDArray, normals: NDArray, T_palm_object: NDArray, hold: NDArray,
+                     sliding: NDArray, n_edges: int | None = None) -> Certificate:
+        """The certificate of a grasp that is not (yet) a hand configuration: contacts and outward
+        normals (m, 3), object frame, object pose (4, 4) (gravity), `hold` and `sliding` (m,) bool;
+        friction cones of `n_edges` edges (default `HoldingOptions.search_edges`; the step checks use
+        `stability.FRICTION_EDGES`)."""
+        self.evaluations += 1
+        return self._compute(np.asarray(contacts, float), np.asarray(normals, float), np.asarray(hold, bool),
+                             np.asarray(sliding, bool), np.asarray(T_palm_object, float),
+                             self.options.search_edges if n_edges is None else int(n_edges))
+
+    def surface_targets(self, tip: NDArray, goal_tip: NDArray, distance: float, n_dirs: int
+                        ) -> tuple[NDArray, NDArray, NDArray]:
+        """Tip-sphere centres on the surface about `distance` from `tip` (3,), object frame, m: the first
+        towards `goal_tip` (3,) (at most as far as it), the others at `n_dirs` − 1 more directions of the
+        tangent plane. Returns (tips, contacts, outward normals), each (n_dirs, 3), object frame."""
+        r = float(self.hand.tip_radius)
+        (c0,), _ = self.obj.closest_points(np.asarray(tip, float).reshape(1, 3))
+        n0 = (tip - c0) / max(float(np.linalg.norm(tip - c0)), 1e-12)
+        to_goal = np.asarray(goal_tip, float) - tip
+        u = to_goal - (to_goal @ n0) * n0
+        if np.linalg.norm(u) < 1e-9:
+            u = np.cross(n0, [1.0, 0.0, 0.0] if abs(n0[0]) < 0.9 else [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(n0, u)
+        theta = 2 * np.pi * np.arange(n_dirs) / n_dirs
+        d = np.full(n_dirs, float(distance))
+        d[0] = min(d[0], float(np.linalg.norm(to_goal)))
+        moved = tip + d[:, None] * (np.cos(theta)[:, None] * u + np.sin(theta)[:, None] * v)
+        contacts, sd = self.obj.closest_points(moved)
+        away = (moved - contacts) * np.sign(np.where(sd == 0, 1.0, sd))[:, None]
+        normals = away / np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-12)
+        return contacts + r * normals, np.asarray(contacts, float), normals
+
+    # ------------------------------------------------------------------------------------ internals
+    def contacts(self, q: NDArray, T_palm_object: NDArray) -> tuple[NDArray, NDArray]:
+        """The grasp's exact contacts (m, 3) and outward normals (m, 3), object frame (cached)."""
+        q, T = np.asarray(q, float), np.asarray(T_palm_object, float)
+        key = q.tobytes() + T.tobytes()
+        if key not in self._grasps:
+            tips = (np.asarray(self.hand.tip_positions(q), float).reshape(-1, 3) - T[:3, 3]) @ T[:3, :3]
+            contacts, _ = self.obj.closest_points(tips)
+            contacts = np.asarray(contacts, float)
+            self._grasps[key] = (contacts, contact_normals(contacts, tips))
+        return self._grasps[key]
+
+    def _certificate(self, q, T, hold: tuple[bool, ...], sliding: tuple[bool, ...]) -> Certificate:
+        q, T = np.asarray(q, float), np.asarray(T, float)
+        key = (q.tobytes(), T.tobytes(), hold, sliding)
+        if key not in self._certs:
+            self.evaluations += 1
+            contacts, normals = self.contacts(q, T)
+            self._certs[key] = self._compute(contacts, normals, np.array(hold), np.array(sliding), T)
+        return self._certs[key]
+
+    def _compute(self, contacts, normals, hold, sliding, T, n_edges: int = FRICTION_EDGES) -> Certificate:
+        o = self.options
+        if self.kind == "gravity":
+            solver = "auto" if n_edges == FRICTION_EDGES else "lp"
+            return certify_step(contacts, normals, hold, "gravity", o.mu, self.mass,
+                                T[:3, :3].T @ self.gravity_palm, center=self.com, sliding=sliding,
+                                max_normal_force=o.max_normal_force, solver=solver)
+        mu_i = contact_mu(o.mu, len(contacts), sliding)[hold]
+        eps = force_closure_quality(contacts[hold], normals[hold], mu_i, self.com, self.length, n_edges)
+        ok = bool(eps > FORCE_CLOSURE_TOL)
+        n_slide = int(np.sum(sliding & hold))
+        detail = (f"{'force closure' if ok else 'no force closure'} of {int(hold.sum())} contacts"
+                  f"{f' ({n_slide} frictionless)' if n_slide else ''}: ε {eps:.3g} (planner, μ {o.mu:g}; "
+                  f"LP margin ≥ ε)")
+        return Certificate("force_closure", ok, eps, None, detail)

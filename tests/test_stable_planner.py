@@ -1,0 +1,245 @@
+"""The planner with a stability certificate at every step (`PlannerOptions.stability`).
+
+box_shift's initial grasp has index, middle and ring on one face of the box and the thumb on the opposite one:
+lifting the thumb leaves three contacts on one face, which never hold a box (no force closure). The
+paper's planner (stability "none") lifts the thumb anyway; the certified planner must not, and every
+step of its plan must carry a certificate that `verify` (and `certificates.step_certificates`,
+independently of the planner's own fast test) confirms.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from regrasp_casadi.certificates import certify_step, step_certificates
+from regrasp_casadi.holding import Holding, HoldingOptions
+from regrasp_casadi.plan import Plan
+from regrasp_casadi.planner import plan_regrasp
+from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.stability import contact_normals, torque_reference
+from regrasp_casadi.verify import verify
+
+ROOT = Path(__file__).resolve().parents[1]
+BOX_SHIFT = ROOT / "problems" / "box_shift.yaml"
+BEFORE = ROOT / "tests" / "data" / "paper_planner_fingerprints.json"  # the paper's planner, main 5964f02
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return RegraspProblem.load(BOX_SHIFT)
+
+
+@pytest.fixture(scope="module")
+def plans(problem):
+    """(paper plan, certified plan) of box_shift, SVD method."""
+    g0, gg = problem.grasp0, problem.grasp_goal
+    return (plan_regrasp(g0, gg, method="svd", stability="none"),
+            plan_regrasp(g0, gg, method="svd", stability="force_closure"))
+
+
+def _exact_grasp(problem, step):
+    """Exact contacts and outward normals (m, 3), object frame, of a plan step (closest points of the tip
+    centres, the normals towards them), as a caller would compute them from the plan alone."""
+    R, p = step.T_palm_object[:3, :3], step.T_palm_object[:3, 3]
+    tips = (np.asarray(problem.hand.tip_positions(step.q), float) - p) @ R
+    contacts, _ = problem.obj.closest_points(tips)
+    return contacts, contact_normals(contacts, tips)
+
+
+def test_the_planted_grasp_cannot_lift_the_thumb(problem, plans):
+    contacts, normals = _exact_grasp(problem, plans[0].steps[0])  # the initial grasp
+    com, length = torque_reference(problem.obj.mesh)
+    fingers = list(problem.hand.fingers)
+    # three fingers on one y face, the thumb alone on the other (box half width 35 mm)
+    three = [fingers.index(f) for f in ("index", "middle", "ring")]
+    side = np.sign(contacts[three[0], 1])
+    assert np.allclose(contacts[three, 1], side * 0.035, atol=1e-6)
+    assert contacts[fingers.index("thumb"), 1] == pytest.approx(-side * 0.035, abs=1e-6)
+    lift_thumb = np.array([f != "thumb" for f in fingers])
+    for hold, held in ((lift_thumb, False), (np.ones(4, bool), True)):
+        cert = certify_step(contacts, normals, hold, "force_closure", 0.5, center=com, length=length)
+        assert cert.ok is held, cert.detail
+
+
+def test_the_paper_plan_drops_the_object_and_the_certified_plan_does_not(problem, plans):
+    paper, certified = plans
+    paper_certs = step_certificates(paper, problem.obj, "force_closure", 0.5, hand=problem.hand)
+    dropped = [k for k, (s, c) in enumerate(zip(paper.steps, paper_certs, strict=True)) if not c.ok]
+    assert any(paper.steps[k].kind == "gait" and paper.steps[k].finger == "thumb" for k in dropped)
+    assert paper.status == "converged" and verify(paper, problem.hand, problem.obj).ok  # a metric only
+
+    assert certified.status == "converged", certified.status_detail
+    report = verify(certified, problem.hand, problem.obj)
+    assert report.ok, report.summary()
+    assert report.metrics["stability"] == "force_closure" and report.metrics["uncertified_steps"] == []
+    assert report.metrics["stored_certificates"] == len(certified.steps)
+    kinds = [s.kind for s in certified.steps]
+    assert "slide" in kinds  # the thumb, which cannot lift, slides
+    assert not any(s.kind == "gait" and s.finger == "thumb" for s in certified.steps)
+    assert np.max(certified.steps[-1].contact_error) <= certified.options["zeta"]
+
+
+def test_every_certified_step_holds_by_an_independent_certificate(problem, plans):
+    _, certified = plans
+    fingers = list(problem.hand.fingers)
+    com, length = torque_reference(problem.obj.mesh)
+    for k, step in enumerate(certified.steps):
+        assert step.certificate["kind"] == "force_closure" and step.certificate["ok"] is True
+        before = certified.steps[k - 1] if k else step
+        contacts, normals = _exact_grasp(problem, before if step.kind in ("gait", "slide") else step)
+        hold = np.array([not (step.kind == "gait" and f == step.finger) for f in fingers])
+        sliding = np.array([step.kind == "slide" and f == step.finger for f in fingers])
+        cert = certify_step(contacts, normals, hold, "force_closure", 0.5, center=com, length=length,
+                            sliding=sliding)  # LP verdict, recomputed from the plan's joints alone
+        assert cert.ok, (k, step.kind, step.finger, cert.detail)
+
+
+def _slide_windows(plan):
+    """(step index, start, end) in s of `Plan.sample`'s time of every slide step (every step after the
+    initial one has a path: they follow each other)."""
+    assert all(s.path is not None for s in plan.steps[1:])
+    ends = np.cumsum([0.0] + [s.path.duration for s in plan.steps[1:]])
+    return [(k, ends[k - 1], ends[k]) for k, s in enumerate(plan.steps) if s.kind == "slide"]
+
+
+def test_slide_steps_have_a_path_on_the_surface_and_the_rest_still(problem, plans):
+    _, certified = plans
+    hand, obj, fingers = problem.hand, problem.obj, list(problem.hand.fingers)
+    windows = _slide_windows(certified)
+    assert windows
+    for k, _, _ in windows:
+        prev, step, path = certified.steps[k - 1], certified.steps[k], certified.steps[k].path
+        assert path.ok, path.detail
+        assert set(path.phases) == {"slide"}
+        np.testing.assert_array_equal(path.q[0], prev.q)
+        np.testing.assert_array_equal(path.q[-1], step.q)
+        np.testing.assert_array_equal(step.T_palm_object, prev.T_palm_object)
+        assert all(np.array_equal(T, step.T_palm_object) for T in path.T_palm_object)
+        others = np.setdiff1d(np.arange(hand.n_joints), np.asarray(hand.finger_joints[step.finger]).ravel())
+        np.testing.assert_array_equal(path.q[:, others], np.repeat(prev.q[None, others], len(path.q), 0))
+        tip = hand.tip_positions(step.q)[fingers.index(step.finger)]
+        assert np.linalg.norm(tip - hand.tip_positions(prev.q)[fingers.index(step.finger)]) <= 2e-3 + 1e-6
+    # the whole motion, as exported and replayed: the sliding tip within 0.5 mm of the surface at every
+    # sample, by trimesh's exact closest point (independent of the package's distance code)
+    t, q, T = certified.sample(0.002)
+    assert t[-1] == pytest.approx(sum(s.path.duration for s in certified.steps[1:]))
+    mesh_mm = obj.mesh.copy()
+    mesh_mm.apply_scale(1000.0)
+    for k, t0, t1 in windows:
+        inside = (t >= t0) & (t <= t1)
+        r = fingers.index(certified.steps[k].finger)
+        tips = np.array([hand.tip_positions(qi)[r] for qi in q[inside]])
+        p_object = np.einsum("kij,ki->kj", T[inside, :3, :3], tips - T[inside, :3, 3])
+        _, d_mm, _ = trimesh.proximity.closest_point(mesh_mm, p_object * 1000.0)
+        assert inside.sum() >= 2 and np.max(np.abs(d_mm / 1000.0 - hand.tip_radius)) <= 0.5e-3
+
+
+def test_verify_follows_a_slide_steps_path(problem, plans):
+    _, certified = plans
+    hand, fingers = problem.hand, list(problem.hand.fingers)
+    k, _, _ = _slide_windows(certified)[0]
+    step = certified.steps[k]
+    path = step.path
+    # plant a knot that swings the slider's first joint 0.1 rad in the middle of its path: the joints'
+    # linear path between the steps still slides (slide_path passes without the path), the path does not
+    q = np.array(path.q)
+    mid = len(q) // 2
+    q[mid, np.asarray(hand.finger_joints[step.finger]).ravel()[0]] += 0.1
+    bad_path = replace(path, q=q)
+    r = fingers.index(step.finger)
+    tip = hand.tip_positions(q[mid])[r]
+    R, p = step.T_palm_object[:3, :3], step.T_palm_object[:3, 3]
+    mesh_mm = problem.obj.mesh.copy()
+    mesh_mm.apply_scale(1000.0)
+    _, d_mm, _ = trimesh.proximity.closest_point(mesh_mm, ((tip - p) @ R)[None] * 1000.0)
+    off = abs(d_mm[0] / 1000.0 - hand.tip_radius)
+    assert off > 0.5e-3
+    steps = list(certified.steps[: k + 1])  # the plan up to that slide (fewer steps to verify)
+    start = replace(certified, steps=tuple(steps), status="iteration_limit")
+    steps[k] = replace(step, path=bad_path)
+    report = verify(replace(start, steps=tuple(steps)), hand, problem.obj)
+    found = [v for v in report.violations if v.check == "slide_path"]
+    assert [v.step for v in found] == [k] and found[0].who == step.finger
+    assert found[0].amount >= off - 1e-6  # at least the planted knot's distance (samples between knots too)
+    steps[k] = replace(step, path=None)  # without a path: the joints' linear path, which slides
+    report = verify(replace(start, steps=tuple(steps)), hand, problem.obj)
+    assert report.ok, report.summary()
+
+
+def test_the_certified_plan_round_trips_with_its_certificates(plans, tmp_path):
+    _, certified = plans
+    loaded = Plan.load(certified.save(tmp_path / "plan.json"))
+    assert loaded == certified
+    assert [s.certificate for s in loaded.steps] == [s.certificate for s in certified.steps]
+
+
+def test_verify_rejects_an_uncertified_gait_with_its_own_mu(problem, plans):
+    paper, certified = plans
+    # the paper's plan, claiming to be certified: its thumb gaits are violations
+    forged = replace(paper, options={**paper.options, "stability": "force_closure"})
+    report = verify(forged, problem.hand, problem.obj)
+    bad = [v for v in report.violations if v.check == "unstable_gait"]
+    assert bad and not report.ok
+    assert {paper.steps[v.step].finger for v in bad if paper.steps[v.step].kind == "gait"} >= {"thumb"}
+    # verify's μ, not the plan's: without friction no holding set of ≤ 4 point contacts is in force closure
+    frictionless = verify(certified, problem.hand, problem.obj, mu=0.0)
+    assert {v.check for v in frictionless.violations} == {"unstable_gait"}
+    assert len(frictionless.violations) == len(certified.steps)
+
+
+def test_the_paper_planner_is_unchanged(plans):
+    # stability "none" reproduces the plans of the planner before the certificates existed (main 5964f02,
+    # benchmarks/regression.py --no-ycb; the benchmark compares every shipped problem and both methods)
+    paper, _ = plans
+    before = {(r["problem"], r["method"]): r for r in json.loads(BEFORE.read_text())["records"]}
+    ref = before[("box_shift", "svd")]
+    err = paper.steps[-1].contact_error
+    assert paper.status == ref["status"] and paper.iterations == ref["iterations"]
+    assert "".join(s.kind[0] for s in paper.steps) == ref["steps"]
+    assert round(float(np.mean(err)) * 1e3, 3) == ref["mean_error_mm"]
+    assert round(float(np.max(err)) * 1e3, 3) == ref["max_error_mm"]
+    assert all(s.certificate is None for s in paper.steps)
+
+
+def test_the_planner_check_is_sound_for_verify_lp(problem):
+    # the planner decides force closure by ε ≥ min_margin alone (8-edge cones; its search uses 4-edge
+    # ones, inscribed in them); the LP that verify runs must agree with every grasp it accepts
+    holding = Holding(problem.hand, problem.obj, "force_closure", HoldingOptions())
+    rng = np.random.default_rng(3)
+    com, length = torque_reference(problem.obj.mesh)
+    contacts, normals = holding.contacts(problem.grasp0.q, problem.grasp0.T_palm_object)
+    tips = contacts + problem.hand.tip_radius * normals
+    accepted = 0
+    for _ in range(12):
+        moved = tips + rng.uniform(-0.015, 0.015, tips.shape)  # contacts moved up to 15 mm on the surface
+        c, sd = problem.obj.closest_points(moved)
+        n = (moved - c) * np.sign(sd)[:, None]
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        for j in range(4):
+            one = np.arange(4) == j
+            for hold, sliding in ((~one, np.zeros(4, bool)), (np.ones(4, bool), one)):
+                fine = holding.hypothetical(c, n, problem.grasp0.T_palm_object, hold, sliding, n_edges=8)
+                coarse = holding.hypothetical(c, n, problem.grasp0.T_palm_object, hold, sliding)
+                assert coarse.margin <= max(fine.margin, 0.0) + 1e-12  # a smaller hull: a smaller ball
+                if holding.certified(fine):
+                    accepted += 1
+                    lp = certify_step(c, n, hold, "force_closure", 0.5, center=com, length=length,
+                                      sliding=sliding)
+                    assert lp.ok, (fine.detail, lp.detail)
+    assert accepted > 5
+
+
+def test_gait_order_search_and_unknown_settings_are_statuses(problem):
+    g0, gg = problem.grasp0, problem.grasp_goal
+    assert plan_regrasp(g0, gg, stability="wobbly").status == "invalid_input"
+    assert plan_regrasp(g0, gg, stability="none", gait_order="search").status == "invalid_input"
+    assert plan_regrasp(g0, gg, stability="gravity", gravity_palm=(0, 0, 0)).status == "invalid_input"
+    plan = plan_regrasp(g0, gg, gait_order="search", max_iters=2)
+    assert plan.options["gait_order"] == "search" and plan.status == "iteration_limit"
+    assert verify(plan, problem.hand, problem.obj).ok
