@@ -17,24 +17,27 @@ Measures; asserts nothing (target of issue 15: trajectories add at most 50 % to 
 
     python benchmarks/trajectories.py [--repeats 3] [--methods svd sd] [--problems box_rotate ...] [--ycb]
 
-Run of commit 34b3b7a (2026-12-01, AMD EPYC, 2 cores shared with other jobs: 1-minute load 5.3;
-Python 3.11.7, CasADi 3.8.2, numpy 2.4.6, trimesh 5.2.0), `--repeats 3`:
+Run of commit 44bb686 (2026-12-01, after the self-collision constraint regenerated the problems; AMD
+EPYC, 2 cores shared with other jobs: 1-minute load 5-6; Python 3.11.7, CasADi 3.8.2, numpy 2.4.6,
+trimesh 5.2.0), `--repeats 3`:
 
 | problem | method | plan s without → with (wall) | CPU s without → with | attach s | paths (g/r/f) | flagged | sampled check fails | knots | motion s |
 |---|---|---|---|---|---|---|---|---|---|
-| bottle_regrasp | svd | 2.31 → 2.87 | 1.49 → 1.89 | 0.51 | 22/7/2 | 0 | 0 | 1326 | 14.7 |
-| bottle_regrasp | sd | 3.47 → 4.00 | 1.71 → 1.98 | 0.52 | 22/7/1 | 1 (gait lift-off) | 0 | 1013 | 10.8 |
-| box_rotate | svd | 1.12 → 1.44 | 0.52 → 0.73 | 0.41 | 26/6/1 | 0 | 0 | 1298 | 13.3 |
-| box_rotate | sd | 1.89 → 2.22 | 0.70 → 0.85 | 0.48 | 18/6/1 | 1 (gait touch-down) | 0 | 984 | 9.8 |
-| box_shift | svd | 0.95 → 1.28 | 0.48 → 0.64 | 0.30 | 18/4/2 | 0 | 0 | 833 | 10.0 |
-| box_shift | sd | 0.71 → 0.86 | 0.47 → 0.57 | 0.18 | 18/4/2 | 0 | 0 | 739 | 8.6 |
-| cylinder_slide | svd | 2.10 → 2.57 | 1.45 → 1.72 | 0.45 | 29/8/1 | 5 (4 gait lift-off/touch-down, 1 repose IK) | 0 | 1295 | 13.6 |
-| cylinder_slide | sd | 1.09 → 1.31 | 0.72 → 0.89 | 0.32 | 16/3/2 | 0 | 0 | 922 | 9.9 |
+| bottle_regrasp | svd | 3.76 → 4.70 | 2.46 → 3.11 | 0.98 | 23/7/6 | 1 (gait transit) | 0 | 1715 | 19.3 |
+| bottle_regrasp | sd | 4.54 → 5.06 | 2.94 → 3.35 | 0.73 | 26/7/1 | 8 (6 gait transit, 2 gait lift-off) | 0 | 1448 | 15.3 |
+| box_rotate | svd | 1.75 → 2.47 | 0.88 → 1.20 | 0.42 | 16/3/3 | 0 | 0 | 885 | 8.8 |
+| box_rotate | sd | 1.96 → 2.51 | 0.98 → 1.24 | 0.42 | 16/3/3 | 0 | 0 | 977 | 11.1 |
+| box_shift | svd | 1.34 → 1.65 | 0.66 → 0.84 | 0.35 | 16/3/1 | 0 | 0 | 704 | 6.4 |
+| box_shift | sd | 2.16 → 2.06 | 1.08 → 1.29 | 0.43 | 16/3/2 | 0 | 0 | 830 | 7.9 |
+| cylinder_slide | svd | 1.34 → 1.81 | 0.89 → 1.19 | 0.53 | 19/4/2 | 4 (2 gait transit, 2 gait lift-off) | 0 | 1037 | 10.7 |
+| cylinder_slide | sd | 2.92 → 3.59 | 1.93 → 2.37 | 0.69 | 21/5/2 | 4 (gait transit) | 0 | 1239 | 12.7 |
 
-Median time per plan: 1.50 s without, 1.83 s with trajectories (+22 %, wall); 0.71 → 0.87 s (+22 %,
-CPU). Paths: 226; flagged by the trajectory code: 7 (joint limits: lift-offs leaning > 45° from the
-normal or short of 5 mm, one reposing whose IK misses by > 0.5 mm); failing the sampled check: 0.
-("attach s" is wall time inside the loaded run; the with/without columns are the comparison.)
+Median time per plan: 2.06 s without, 2.49 s with trajectories (+21 %, wall); 1.03 → 1.27 s (+23 %,
+CPU). Paths: 208; flagged by the trajectory code: 17 — 13 transits or touch-downs that bring the moving
+finger within 1 mm of (5 of them into, by ≤ 0.53 mm) a neighbouring finger, 4 lift-offs the joint
+limits lean more than 45° off the normal; failing the sampled check (object only): 0. Before the
+self-collision constraint (commit 34b3b7a, same machine): +22 % (1.50 → 1.83 s), 226 paths, 7 flagged
+(joint limits), 0 failing. ("attach s" is wall time inside the loaded run.)
 """
 
 from __future__ import annotations
