@@ -20,6 +20,9 @@ order. At every step:
 * repose / final steps: each finger's contact on the object moves at most `max_slip` (slip);
 * no self-collision (`self_clearance`; `regrasp_casadi.self_collision_checks`): sphere pairs of two fingers
   or a finger and the palm, and the link meshes of different fingers (python-fcl, `link_meshes`);
+* the motion between the steps, sampled so that no point of the hand moves more than 1 mm between
+  samples (`regrasp_casadi.verify_motion`): penetration, self-collision, joint limits, held contacts,
+  slip (``motion_*``);
 * the plan's claims: a "converged" plan's last step has max contact error ≤ `zeta`.
 
 A new check is one function `check_x(ctx, step_index, step) -> list[Finding]` and one row of
@@ -45,6 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi import constants
+from regrasp_casadi import verify_motion as motion
 from regrasp_casadi.self_collision_checks import check_self_collision, check_self_collision_mesh
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
@@ -432,6 +436,11 @@ CHECK_TABLE: tuple[Check, ...] = (
     Check("slip", check_slip),
     Check("self_collision", check_self_collision),
     Check("self_collision_mesh", check_self_collision_mesh),
+    Check("motion_penetration", motion.check_motion_penetration),  # the motion, sampled: `verify_motion`
+    Check("motion_self_collision", motion.check_motion_self_collision),
+    Check("motion_joint_limit", motion.check_motion_joint_limits),
+    Check("motion_held_contact", motion.check_motion_held_contacts),
+    Check("motion_slip", motion.check_motion_slip),
     Check("converged_claim", check_converged_claim),
 )
 """Every check, in the order it runs on each step."""
