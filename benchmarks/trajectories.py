@@ -58,6 +58,7 @@ from machine import REPO, machine_info  # noqa: E402
 from regrasp_casadi.motion import sample_knots  # noqa: E402
 from regrasp_casadi.planner import plan_regrasp  # noqa: E402
 from regrasp_casadi.problem import RegraspProblem  # noqa: E402
+from regrasp_casadi.verify import verify  # noqa: E402
 
 RESULTS = REPO / "benchmarks" / "results" / "trajectories.json"
 DT = 0.002
@@ -133,6 +134,10 @@ def run(path: pathlib.Path, method: str, repeats: int) -> dict:
             flagged[(step.kind, step.path.detail.split(":")[0].split(" ")[0])] += 1
     kinds = collections.Counter(s.kind for s in plan.steps[1:])
     failures = sampled_check(plan, problem.hand, problem.obj, plan.options["trajectory"]["beta"])
+    v0 = time.perf_counter()
+    report = verify(plan, problem.hand, problem.obj)
+    verify_s = time.perf_counter() - v0
+    by_check = collections.Counter(v.check for v in report.violations)
     med = {flag: [statistics.median(r[k] for r in runs[flag]) for k in range(3)] for flag in runs}
     return {"problem": path.stem, "method": method, "status": plan.status,
             "wall_without": med[False][0], "wall_with": med[True][0], "cpu_without": med[False][1],
@@ -141,7 +146,31 @@ def run(path: pathlib.Path, method: str, repeats: int) -> dict:
             "n_flagged": sum(flagged.values()), "n_paths": len(plan.steps) - 1,
             "knots": sum(len(s.path.t) for s in plan.steps[1:]),
             "duration_s": sum(s.path.duration for s in plan.steps[1:]),
-            "sampled_failures": failures}
+            "sampled_failures": failures, "verified": report.ok,
+            "violations": dict(by_check), "motion_ok": not any(c.startswith("motion_") for c in by_check),
+            "motion_samples": report.metrics.get("motion_samples", 0),
+            "motion_seconds": report.metrics.get("motion_seconds", 0.0), "verify_s": verify_s,
+            "first_violations": [f"step {v.step} {v.check} [{v.who}]: {v.message}" for v in report.violations[:3]]}
+
+
+def _print_verify(records: list[dict]) -> None:
+    """verify's verdict on the plans with trajectories: converged, verified, passing the motion rows,
+    violations by check, time of verify and of its motion rows."""
+    conv = [r for r in records if r["status"] == "converged"]
+    kinds = collections.Counter()
+    for r in records:
+        kinds.update(r["violations"])
+    print(f"plans: {len(records)}, converged {len(conv)} ({100 * len(conv) / max(1, len(records)):.0f} %); "
+          f"verified {sum(r['verified'] for r in records)} (converged and verified "
+          f"{sum(r['verified'] for r in conv)}); motion rows pass on {sum(r['motion_ok'] for r in records)} "
+          f"(converged: {sum(r['motion_ok'] for r in conv)})")
+    print(f"violations by check: {dict(kinds) or 'none'}")
+    print(f"verify per plan: median {statistics.median(r['verify_s'] for r in records):.2f} s, of which the "
+          f"motion rows {statistics.median(r['motion_seconds'] for r in records):.2f} s "
+          f"({statistics.median(r['motion_samples'] for r in records):.0f} samples)")
+    for r in records:
+        for line in r["first_violations"]:
+            print(f"  {r['problem']} {r['method']} ({r['status']}): {line[:240]}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -151,9 +180,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--problems", nargs="+", help="problem names (default: every problems/*.yaml)")
     ap.add_argument("--ycb", action="store_true",
                     help="also the paper's YCB pairs (benchmarks/problems/*.yaml; needs ../shared/reference)")
+    ap.add_argument("--only-ycb", action="store_true", help="only the YCB pairs (with --ycb)")
     ap.add_argument("--out", type=pathlib.Path, default=RESULTS, help="results JSON")
     args = ap.parse_args(argv)
-    files = sorted((REPO / "problems").glob("*.yaml"))
+    files = [] if args.only_ycb else sorted((REPO / "problems").glob("*.yaml"))
     if args.ycb:
         files += sorted((REPO / "benchmarks" / "problems").glob("*.yaml"))
     if args.problems:
@@ -180,6 +210,7 @@ def main(argv: list[str] | None = None) -> int:
     for r in records:
         for line in r["sampled_failures"]:
             print(f"  {r['problem']} {r['method']}: {line}")
+    _print_verify(records)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"machine": machine_info(), "records": records}, indent=1))
     return 0

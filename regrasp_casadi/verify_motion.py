@@ -249,8 +249,9 @@ class MotionGeometry:
     """(N, m) exact distance of each tip centre − tip radius, m."""
     p_object_contact: NDArray[np.float64]
     """(N, m) exact closest points of the tip centres, object frame, m."""
-    self_min: NDArray[np.float64]
-    """(N, P) surface distance of every self-collision pair, m (P = 0 when not checked)."""
+    self_min: dict[int, tuple[NDArray[np.float64], NDArray[np.int64]]]
+    """step -> (smallest surface distance (P,) of every self-collision pair over the step's samples, m;
+    the sample where it is), exact below the threshold + `NEAR` (P = 0 when not checked)."""
 
 
 def motion_geometry(ctx: VerifyContext) -> MotionGeometry:
@@ -278,7 +279,11 @@ def motion_geometry(ctx: VerifyContext) -> MotionGeometry:
     clearance[:, tip_idx] = np.where(on_surface, tip_gap, clearance[:, tip_idx])
     tip_gap = np.where(on_surface, tip_gap, clearance[:, tip_idx])
     pairs = ctx.self_pairs if tol.self_clearance is not None else ()
-    self_min = _self_distances(hand, C, pairs, tol.self_clearance or 0.0, blocks, samples.max_point_step)
+    judged = {k: _judged_rows(samples, ctx.plan.steps, k) for k in np.unique(samples.step).tolist()}
+    judged = {k: rows for k, rows in judged.items() if rows.size}
+    per_step = _self_distances(hand, C, pairs, tol.self_clearance or 0.0, list(judged.values()),
+                               samples.max_point_step)
+    self_min = dict(zip(judged, per_step, strict=True))
     geom = MotionGeometry(samples, clearance, tip_gap, contact, self_min)
     ctx.__dict__["_motion_geometry"] = geom
     ctx.metrics.update({"motion_samples": int(N), "motion_max_point_step": samples.max_point_step,
@@ -352,26 +357,29 @@ def _tip_contacts(obj, p_object_tips: NDArray, tip_radii: NDArray,
     return gap, contact
 
 
-def _self_distances(hand: Hand, C: NDArray, pairs, limit: float, blocks: list[slice],
-                    delta: float) -> NDArray[np.float64]:
-    """(N, P) surface distances of the sphere pairs (P, 2) at the centres C (N, S, 3), m: exact for the
-    pairs of a step that may come within `limit` + `NEAR`, a lower bound (coarse samples − 2·delta per
-    sample) for the others."""
+def _self_distances(hand: Hand, C: NDArray, pairs, limit: float, blocks: list[NDArray[np.int64]],
+                    delta: float) -> list[tuple[NDArray[np.float64], NDArray[np.int64]]]:
+    """Per step (its consecutive sample rows): (smallest surface distance (P,) of each sphere pair
+    (P, 2) over the step's samples, m; the sample row where it is). Exact for the pairs that may come
+    within `limit` + `NEAR` (at every sample), a lower bound for the others (their coarse samples'
+    minimum − 2·delta per sample to the farthest sample they stand for, m; at the coarse sample)."""
     from regrasp_casadi.self_collision import pair_distances
 
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
-    out = np.zeros((len(C), len(pairs)))
-    if not len(pairs):
-        return out
-    for block in blocks:
-        rows = np.arange(block.start, block.stop)
-        coarse, nearest, steps = _coarse_rows(len(rows))
+    out = []
+    for rows in blocks:
+        if not len(pairs):
+            out.append((np.zeros(0), np.zeros(0, int)))
+            continue
+        coarse, _, _ = _coarse_rows(len(rows))
         D = pair_distances(hand, C[rows[coarse]], pairs)
-        lower = D[np.searchsorted(coarse, nearest)] - 2.0 * delta * steps[:, None]
-        close = np.flatnonzero(np.min(lower, axis=0) < limit + NEAR)
-        out[rows] = lower
+        reach = 2.0 * delta * (_STRIDE / 2.0 + 1.0)
+        lower, at = np.min(D, axis=0) - reach, rows[coarse[np.argmin(D, axis=0)]]
+        close = np.flatnonzero(lower < limit + NEAR)
         if close.size:
-            out[rows[:, None], close[None]] = pair_distances(hand, C[rows], pairs[close])
+            full = pair_distances(hand, C[rows], pairs[close])
+            lower[close], at[close] = np.min(full, axis=0), rows[np.argmin(full, axis=0)]
+        out.append((lower, at))
     return out
 
 
@@ -382,14 +390,18 @@ def _on_surface(ctx: VerifyContext, step: PlanStep) -> NDArray[np.bool_]:
 
 
 def _rows(ctx: VerifyContext, k: int, ends: bool = False) -> NDArray[np.int64]:
+    """Indices of the samples of step k's motion (`_judged_rows`)."""
+    return _judged_rows(motion_geometry(ctx).samples, ctx.plan.steps, k, ends)
+
+
+def _judged_rows(samples: MotionSamples, steps, k: int, ends: bool = False) -> NDArray[np.int64]:
     """Indices of the samples of step k's motion; without `ends`, not its first and last sample when
     they are exactly the previous step and step k (the static rows of `CHECK_TABLE` judge those)."""
-    samples = motion_geometry(ctx).samples
     rows = np.flatnonzero(samples.step == k)
     if ends or not rows.size:
         return rows
     keep = np.ones(len(rows), bool)
-    for pos, step in ((0, ctx.plan.steps[k - 1]), (-1, ctx.plan.steps[k])):
+    for pos, step in ((0, steps[k - 1]), (-1, steps[k])):
         i = rows[pos]
         keep[pos] &= not (np.array_equal(samples.q[i], step.q)
                           and np.array_equal(samples.T_palm_object[i], step.T_palm_object))
@@ -446,14 +458,12 @@ def check_motion_self_collision(ctx: VerifyContext, k: int, step: PlanStep) -> l
     finding per link pair, at its worst sample (metric "motion_min_self_clearance")."""
     from regrasp_casadi.verify import Finding
 
-    rows, limit = _rows(ctx, k), ctx.tol.self_clearance
-    geom, hand = motion_geometry(ctx), ctx.hand
-    if limit is None or not rows.size or not geom.self_min.shape[1]:
+    limit, geom, hand = ctx.tol.self_clearance, motion_geometry(ctx), ctx.hand
+    if limit is None or k not in geom.self_min or not len(geom.self_min[k][0]):
         return []
-    D = geom.self_min[rows]
+    pair_min, at = geom.self_min[k]
     ctx.metrics["motion_min_self_clearance"] = min(ctx.metrics.get("motion_min_self_clearance", math.inf),
-                                                   float(np.min(D)))
-    pair_min, at = np.min(D, axis=0), np.argmin(D, axis=0)
+                                                   float(np.min(pair_min)))
     worst: dict[tuple[str, str], int] = {}
     for p in np.argsort(pair_min, kind="stable"):
         if pair_min[p] >= limit:
@@ -463,7 +473,7 @@ def check_motion_self_collision(ctx: VerifyContext, k: int, step: PlanStep) -> l
     out = []
     for (la, lb), p in worst.items():
         a, b = ctx.self_pairs[p]
-        sa, sb, d, i = hand.spheres[a], hand.spheres[b], float(pair_min[p]), int(rows[at[p]])
+        sa, sb, d, i = hand.spheres[a], hand.spheres[b], float(pair_min[p]), int(at[p])
         what = f"overlap by {-d * 1e3:.2f} mm" if d < 0 else f"are only {d * 1e3:.2f} mm apart"
         out.append(Finding(f"{la}|{lb}", d, limit,
                            f"{_when(ctx, k, i)}: links {la} ({sa.finger or 'palm'}) and {lb} "
