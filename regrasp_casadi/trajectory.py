@@ -26,9 +26,10 @@ distance for the checks.
   distance between two knots is within half of it of one of theirs): joint limits, the moving finger's
   spheres ≥ β from the object and ≥ `self_clearance` from the other fingers and the palm in a transit
   (`Hand.self_collision_pairs`), not in the object nor in another finger during lift-off and
-  touch-down (a lift is lowered to 3/5 or 2/5 of its height when that keeps it clear of the others);
-  in a reposing the tips within `surface_tol` of the surface, the contacts within `max_slip` of step
-  A's, every non-tip sphere (palm included) outside the object, no two fingers overlapping. A failure
+  touch-down (a lift is lowered to 3/5 or 2/5, or leans 25°/40° away from the closest other finger,
+  when that keeps it clear of the others); in a reposing the tips within `surface_tol` of the
+  surface, the contacts within `max_slip` of step A's, every non-tip sphere (palm included) outside
+  the object, no two fingers overlapping. A failure
   (an IK that cannot reach a knot within the limits, a check) is reported in the path (`ok` False and
   `detail`), never hidden.
 
@@ -329,18 +330,29 @@ def _contact_normal_palm(ctx: _Context, step: PlanStep, finger: str) -> NDArray[
 
 
 def _clear_lift(ctx: _Context, q0: NDArray, finger: str, n_palm: NDArray) -> tuple[NDArray[np.float64], str]:
-    """`_lift` by `lift_height`, or by a lower height (3/5, 2/5 of it) when the higher lift brings the
-    finger closer to another than `self_clearance` (and than it is at q0); if every height does, the
-    one that keeps the finger farthest from the others."""
+    """`_lift` by `lift_height`, else lower (3/5, 2/5 of it), else leaning 25°, 40° away from the closest
+    other finger, when the lift brings the finger closer to another than `self_clearance` (and than at
+    q0); if every one does, the one that keeps it farthest from the others."""
     o = ctx.options
     floor = min(o.self_clearance or 0.0, float(ctx.self_distance(q0[None], finger)[0])) - 1e-9
-    best: tuple[float, NDArray[np.float64], str] | None = None
-    for fraction in (1.0, 0.6, 0.4):
-        knots, why = _lift(ctx, q0, finger, n_palm, fraction * o.lift_height)
+    best: tuple[tuple, NDArray[np.float64], str] | None = None
+    tries = [(n_palm, f) for f in (1.0, 0.6, 0.4)]
+    pairs = ctx.self_pairs.get(finger, np.zeros((0, 2), dtype=int))
+    if len(pairs):  # away from the closest sphere of another finger (or the palm), in the tangent plane
+        C, r = ctx.centers(q0[None])[0], ctx.radii
+        a, b = pairs[int(np.argmin(np.linalg.norm(C[pairs[:, 0]] - C[pairs[:, 1]], axis=1)
+                                   - r[pairs[:, 0]] - r[pairs[:, 1]]))]
+        v = (C[a] - C[b]) * (1.0 if ctx.sphere_finger[a] == finger else -1.0)
+        u = v - (v @ n_palm) * n_palm
+        leans = [n_palm + math.tan(math.radians(deg)) * u / max(np.linalg.norm(u), 1e-12) for deg in (25, 40)]
+        tries += [(d / np.linalg.norm(d), f) for d in leans for f in (1.0, 0.6)]
+    for direction, fraction in tries:
+        knots, why = _lift(ctx, q0, finger, direction, fraction * o.lift_height)
         gap = float(np.min(ctx.self_distance(knots, finger)))
-        if gap >= floor:
+        key = (gap >= floor, not why, gap)  # clear of the others first, then within the lean limit
+        if key[0] and key[1]:
             return knots, why
-        best = best if best is not None and best[0] >= gap else (gap, knots, why)
+        best = best if best is not None and best[0] >= key else (key, knots, why)
     assert best is not None
     return best[1], best[2]
 
