@@ -206,7 +206,8 @@ def main(argv: list[str] | None = None) -> int:
             r = records[-1]
             print(f"# {r['problem']} {r['method']}: {r['status']}, verified {r['verified']}, motion rows "
                   f"{'pass' if r['motion_ok'] else 'FAIL'}, {r['wall_without']:.2f} -> {r['wall_with']:.2f} s, "
-                  f"verify {r['verify_s']:.2f} s", flush=True)
+                  f"verify {r['verify_s']:.2f} s (motion {r['motion_seconds']:.2f} s, {r['motion_samples']} "
+                  f"samples), violations {r['violations']}", flush=True)
     print("| problem | method | plan s without → with (wall) | CPU s without → with | attach s | paths "
           "(g/r/f) | flagged | sampled check fails | knots | motion s |")
     print("|---|---|---|---|---|---|---|---|---|---|")

@@ -27,8 +27,9 @@ worst sample, naming the step, the time into the step's path and from the plan's
 links and fingers):
 
 * ``motion_penetration``: every non-tip collision sphere (palm included) keeps an exact distance −
-  radius ≥ ``min_clearance`` from the object (`ObjectModel.near_signed_distance`, exact within 1 mm of
-  the threshold), and no fingertip sphere sinks more than ``surface_tol`` into it;
+  radius ≥ ``min_clearance`` from the object (the exact mesh distance wherever the mesh's bounding box,
+  the convex pieces' estimate or a nearby sample cannot show it is 0.5 mm above the threshold), and
+  no fingertip sphere sinks more than ``surface_tol`` into it;
 * ``motion_self_collision``: every self-collision sphere pair (`Hand.self_collision_pairs()`, none
   pruned) keeps ≥ ``self_clearance`` (off with ``self_clearance=None``); the spheres enclose the link
   meshes, so clear spheres mean clear meshes (the link meshes are checked at the steps by
@@ -75,7 +76,7 @@ __all__ = [
 MAX_POINT_STEP = 1e-3
 """Largest motion of any point of the hand between two samples, relative to the palm and the object, m."""
 
-NEAR = 1e-3
+NEAR = 0.5e-3
 """Sphere clearances are exact within this of the threshold (m); farther, a lower bound."""
 
 _CHUNK = 256
@@ -272,9 +273,11 @@ def motion_geometry(ctx: VerifyContext) -> MotionGeometry:
     threshold = np.full(S, max(tol.min_clearance, 0.0))
     threshold[tip_idx] = -tol.surface_tol
     blocks = _step_blocks(samples.step)
-    clearance = _object_clearance(ctx.obj, p_object, radii, threshold, blocks, samples.max_point_step)
     on_surface = np.stack([_on_surface(ctx, ctx.plan.steps[k]) for k in samples.step]) if N else \
         np.zeros((0, len(tip_idx)), bool)
+    skip = np.zeros((N, S), bool)
+    skip[:, tip_idx] = on_surface  # the holding tips: exact below
+    clearance = _object_clearance(ctx.obj, p_object, radii, threshold, blocks, samples.max_point_step, skip)
     tip_gap, contact = _tip_contacts(ctx.obj, p_object[:, tip_idx], radii[tip_idx], on_surface)
     clearance[:, tip_idx] = np.where(on_surface, tip_gap, clearance[:, tip_idx])
     tip_gap = np.where(on_surface, tip_gap, clearance[:, tip_idx])
@@ -314,30 +317,37 @@ def _coarse_rows(n: int) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[
 
 
 def _object_clearance(obj, p_object: NDArray, radii: NDArray, threshold: NDArray, blocks: list[slice],
-                      delta: float) -> NDArray[np.float64]:
-    """(N, S) exact distance − radius of every sphere where it may be below threshold (S,) + `NEAR`, a
-    rigorous lower bound elsewhere: the distance to the mesh's bounding box, then the exact value at
-    the nearest coarse sample of the same step minus `delta` (m, the most a point moves between two
-    samples) per sample between them (the distance is 1-Lipschitz)."""
+                      delta: float, skip: NDArray) -> NDArray[np.float64]:
+    """(N, S) distance − radius of every sphere (not where `skip` (N, S)): exact where it may be below
+    threshold (S,) + `NEAR`; elsewhere a lower bound: the distance to the mesh's bounding box, the
+    convex pieces' support-plane estimate (`ObjectModel.near_signed_distance`: the pieces cover the
+    mesh up to their decomposition error, which `NEAR` absorbs), or the value at the nearest coarse
+    sample of the same step minus `delta` (m, the most a point moves between two samples) per sample
+    between them (the distance is 1-Lipschitz). Each distinct point is queried once (in a gait the
+    palm and the other fingers do not move)."""
     N, S = p_object.shape[:2]
     lo, hi = (np.asarray(b, float) for b in obj.mesh.bounds)
     box = np.linalg.norm(np.maximum(np.maximum(lo - p_object, p_object - hi), 0.0), axis=2)
-    value, exact = box - radii[None], np.zeros((N, S), bool)
+    value, known = box - radii[None], skip.copy()
     limit = threshold[None] + NEAR
 
     def fill(rows: NDArray, mask: NDArray) -> None:
         r, j = np.nonzero(mask)
         if r.size:
-            value[rows[r], j] = obj.exact_signed_distance(p_object[rows[r], j]) - radii[j]
-            exact[rows[r], j] = True
+            keys = np.column_stack([p_object[rows[r], j], j])
+            uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
+            jj = uniq[:, 3].astype(int)
+            d = obj.near_signed_distance(uniq[:, :3], radii[jj] + threshold[jj] + NEAR) - radii[jj]
+            value[rows[r], j] = d[np.asarray(inverse).reshape(-1)]
+            known[rows[r], j] = True
 
     for block in blocks:
         rows = np.arange(block.start, block.stop)
         coarse, nearest, steps = _coarse_rows(len(rows))
-        fill(rows[coarse], value[rows[coarse]] < limit)
+        fill(rows[coarse], (value[rows[coarse]] < limit) & ~known[rows[coarse]])
         near_val = value[rows[nearest]] - steps[:, None] * delta
-        value[rows] = np.maximum(value[rows], np.where(exact[rows[nearest]], near_val, -np.inf))
-        fill(rows, (value[rows] < limit) & ~exact[rows])
+        value[rows] = np.maximum(value[rows], np.where(known[rows[nearest]], near_val, -np.inf))
+        fill(rows, (value[rows] < limit) & ~known[rows])
     return value
 
 
