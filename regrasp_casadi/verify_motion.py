@@ -457,7 +457,7 @@ def check_motion_penetration(ctx: VerifyContext, k: int, step: PlanStep) -> list
         out.append(Finding(link, c, float(limit[j]),
                            f"{_when(ctx, k, i)}: link {link} ({sph.finger or 'palm'}) is "
                            f"{-c * 1e3:.2f} mm inside the object (sphere {sph.label}; allowed "
-                           f"{-limit[j] * 1e3:.2f} mm)" if c < 0 else
+                           f"{abs(min(float(limit[j]), 0.0)) * 1e3:.2f} mm)" if c < 0 else
                            f"{_when(ctx, k, i)}: link {link} ({sph.finger or 'palm'}) has only "
                            f"{c * 1e3:.2f} mm clearance (< {limit[j] * 1e3:.2f} mm; sphere {sph.label})"))
     return out
