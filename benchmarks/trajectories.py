@@ -38,6 +38,24 @@ finger within 1 mm of (5 of them into, by ≤ 0.53 mm) a neighbouring finger, 4 
 limits lean more than 45° off the normal; failing the sampled check (object only): 0. Before the
 self-collision constraint (commit 34b3b7a, same machine): +22 % (1.50 → 1.83 s), 226 paths, 7 flagged
 (joint limits), 0 failing. ("attach s" is wall time inside the loaded run.)
+
+verify's motion rows (`regrasp_casadi.verify_motion`) on the plans with trajectories, run of 872d1e9 with
+`--repeats 0` (one plan each; times from `plan.timing`, NLP builds left out; 2 cores, 1-minute load
+17-21 from other jobs, so wall times are 3-5x the unloaded ones), results/trajectories.json:
+
+* shipped problems (8 plans): 8 converged, 7 verified, 7 pass the motion rows; the one failure is
+  bottle_regrasp sd, step 24 (gait of the thumb, touch-down, t = 0.201 s): palm_link and link_15.0
+  (thumb) spheres overlap by 0.01 mm (the trajectory code flags the same transit). Before the leaning
+  lift-offs (1514b46, `--repeats 1`) 5 of 8 passed: 8 self-collision violations of ≤ 0.53 mm in
+  bottle_regrasp sd and cylinder_slide svd/sd. Median plan time 12.88 → 17.91 s with trajectories
+  (+39 % wall, under load; the earlier `--repeats 1` run: +24 % wall, +25 % CPU). verify per plan:
+  median 6.5 s, of which the motion rows 4.2 s (4,327 samples).
+* paper benchmark (25 YCB pairs × 2 methods, problems regenerated with the self-collision rule): not
+  completed — stopped after 7 plans at the deadline (banana_0-3 svd, banana_0-2 sd): 6 converged
+  (banana_2 sd: solver_failure), 5 verified; banana_0 fails with both methods: during the final move
+  (step 36 for svd, t = 0.413 s) a palm sphere (palm_link#11) goes 0.97 mm into the banana (the
+  trajectory code flags that path too: 0.965 mm). verify per YCB plan 30-146 s under load (motion rows
+  9-79 s, 3,700-7,800 samples; the exact mesh distance of the holding tips dominates).
 """
 
 from __future__ import annotations
