@@ -39,14 +39,14 @@ limits lean more than 45° off the normal; failing the sampled check (object onl
 self-collision constraint (commit 34b3b7a, same machine): +22 % (1.50 → 1.83 s), 226 paths, 7 flagged
 (joint limits), 0 failing. ("attach s" is wall time inside the loaded run.)
 
-verify's motion rows (`regrasp_casadi.verify_motion`) on the plans with trajectories, run of 872d1e9 with
+verify's motion rows (`regrasp_casadi.verify_motion`) on the plans with trajectories, run of e967073 with
 `--repeats 0` (one plan each; times from `plan.timing`, NLP builds left out; 2 cores, 1-minute load
 17-21 from other jobs, so wall times are 3-5x the unloaded ones), results/trajectories.json:
 
 * shipped problems (8 plans): 8 converged, 7 verified, 7 pass the motion rows; the one failure is
   bottle_regrasp sd, step 24 (gait of the thumb, touch-down, t = 0.201 s): palm_link and link_15.0
   (thumb) spheres overlap by 0.01 mm (the trajectory code flags the same transit). Before the leaning
-  lift-offs (1514b46, `--repeats 1`) 5 of 8 passed: 8 self-collision violations of ≤ 0.53 mm in
+  lift-offs (b2bee3b, `--repeats 1`) 5 of 8 passed: 8 self-collision violations of ≤ 0.53 mm in
   bottle_regrasp sd and cylinder_slide svd/sd. Median plan time 12.88 → 17.91 s with trajectories
   (+39 % wall, under load; the earlier `--repeats 1` run: +24 % wall, +25 % CPU). verify per plan:
   median 6.5 s, of which the motion rows 4.2 s (4,327 samples).

@@ -33,7 +33,7 @@ KNOWN_MOTION_FAILURES = {
     ("bottle_regrasp", "sd"): "issue 15: a thumb touch-down passes 0.01 mm through a palm sphere (verify's "
                               "motion_self_collision, step 24; the trajectory code flags that path too)",
 }
-"""Plans whose only violations are verify's sampled self-collision between the steps (measured, 872d1e9)."""
+"""Plans whose only violations are verify's sampled self-collision between the steps (measured, e967073)."""
 
 
 @pytest.mark.parametrize("method", ["svd", "sd"])
