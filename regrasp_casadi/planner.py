@@ -111,7 +111,8 @@ class PlannerOptions:
     """OPT2's options (k1, k2, β, trust region, ...)."""
     trajectories: bool = True
     """Give every step its motion from the step before (`trajectory.attach_trajectories`: lift-off,
-    transit and touch-down of gaits, reposing paths; β of the finger gait); False: static steps only."""
+    transit and touch-down of gaits, reposing paths; β and self-clearance of the finger gait); False:
+    static steps only."""
 
     OVERRIDES: ClassVar[dict[str, tuple[str, ...]]] = {
         "eta": ("finger_gait",),
@@ -496,7 +497,9 @@ def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_star
                 iteration_errors=np.asarray(run.errors if run else [], dtype=float), timing=timing,
                 options=opts)
     if options.trajectories and len(plan.steps) > 1:
-        plan = attach_trajectories(plan, hand, obj, TrajectoryOptions(beta=options.finger_gait.beta))
+        gait = options.finger_gait
+        plan = attach_trajectories(plan, hand, obj, TrajectoryOptions(beta=gait.beta,
+                                                                      self_clearance=gait.self_clearance))
     return plan
 
 

@@ -24,10 +24,14 @@ distance for the checks.
   joint-space parts (exactly the interpolation rule; a transit is split so from the start).
 * **Checks** at every knot (no point of the hand moves more than `max_point_step` between two, so a
   distance between two knots is within half of it of one of theirs): joint limits, the moving finger's
-  spheres ≥ β in a transit and not in the object during lift-off and touch-down; in a reposing the tips
-  within `surface_tol` of the surface, the contacts within `max_slip` of step A's, every non-tip sphere
-  (palm included) outside the object. A failure (an IK that cannot reach a knot within the limits, a
-  check) is reported in the path (`ok` False and `detail`), never hidden.
+  spheres ≥ β from the object and ≥ `self_clearance` from the other fingers and the palm in a transit
+  (`Hand.self_collision_pairs`), not in the object nor in another finger during lift-off and
+  touch-down (a lift is lowered to 3/5 or 2/5, or leans 25°/40° away from the closest other finger,
+  when that keeps it clear of the others); in a reposing the tips within `surface_tol` of the
+  surface, the contacts within `max_slip` of step A's, every non-tip sphere (palm included) outside
+  the object, no two fingers overlapping. A failure
+  (an IK that cannot reach a knot within the limits, a check) is reported in the path (`ok` False and
+  `detail`), never hidden.
 
     >>> plan = attach_trajectories(plan, hand, obj)          # what plan_regrasp does at the end
     >>> t, q, T_palm_object = plan.sample(0.01)
@@ -45,12 +49,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.constants import BETA, SELF_CLEARANCE
 from regrasp_casadi.motion import (
     DEFAULT_MAX_JOINT_SPEED,
     DEFAULT_MIN_STEP_DURATION,
     StepPath,
     time_stamps,
 )
+from regrasp_casadi.tip_ik import joints_at_limits, tip_ik
 from regrasp_casadi.transforms import interpolate_pose, inv_T, transform_points
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -61,9 +67,6 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["TrajectoryOptions", "plan_trajectories", "attach_trajectories"]
 
 _log = logging.getLogger(__name__)
-
-_IK_CONVERGED = 1e-7
-"""IK iterates until every (weighted) tip error is below this, m (or until it stops making progress)."""
 
 _RISE_TOL = 0.1
 """A lift knot may fall short of its height along the normal by this fraction (joint limits)."""
@@ -88,8 +91,11 @@ class TrajectoryOptions:
 
     lift_height: float = 0.005
     """Lift-off and touch-down distance of a gait's tip centre along the contact normal, m."""
-    beta: float = 0.001
+    beta: float = BETA
     """β, clearance of every sphere of the moving finger from the object during a transit, m."""
+    self_clearance: float | None = SELF_CLEARANCE
+    """Clearance of the moving finger's spheres from the other fingers' and the palm's during a transit
+    (`Hand.self_collision_pairs`), m; elsewhere no sphere pair may overlap; None: not checked."""
     via_heights: tuple[float, ...] = (0.005, 0.01, 0.02, 0.04)
     """Heights above the lifted points' midpoint of the via points tried when a transit is too close, m."""
     max_point_step: float = 0.001
@@ -144,6 +150,9 @@ class _Context:
         self._centers: dict[bytes, NDArray[np.float64]] = {}
         self.box_lower, self.box_upper = (np.asarray(b, dtype=float) for b in obj.mesh.bounds)
         """The object mesh's bounding box, object frame, m."""
+        self.self_pairs = {f: np.asarray(hand.self_collision_pairs(f), dtype=int).reshape(-1, 2)
+                           for f in (None, *hand.fingers)} if options.self_clearance is not None else {}
+        """finger (None: all) -> (P, 2) self-collision sphere pairs, indices in `centers`' order."""
 
     def finger_spheres(self, finger: str) -> NDArray[np.int64]:
         """Indices of the finger's spheres (tip included) in `centers`' second axis."""
@@ -178,6 +187,16 @@ class _Context:
             d[close] = self.obj.near_signed_distance(p_object[close], near[close])
         return (d - r).reshape(len(Q), len(spheres))
 
+    def self_distance(self, Q: NDArray[np.float64], finger: str | None = None) -> NDArray[np.float64]:
+        """(k,) smallest surface distance of the finger's (None: all) self-collision pairs at knots Q, m
+        (inf when not checked)."""
+        pairs = self.self_pairs.get(finger, np.zeros((0, 2), dtype=int))
+        if not len(pairs):
+            return np.full(len(Q), math.inf)
+        C = self.centers(Q)
+        gap = np.linalg.norm(C[:, pairs[:, 0]] - C[:, pairs[:, 1]], axis=2)
+        return np.min(gap - self.radii[pairs[:, 0]] - self.radii[pairs[:, 1]], axis=1)
+
     def pair_motion(self, Q_a: NDArray[np.float64], Q_b: NDArray[np.float64]) -> NDArray[np.float64]:
         """(k,) bound on how far any point of the hand moves from Q_a[i] to Q_b[i] (k, n), m: per sphere
         ‖Δc‖ + ρ·Σ|Δq_j| over the joints that move it."""
@@ -191,76 +210,17 @@ def _to_object(Ts: NDArray, p_palm: NDArray) -> NDArray[np.float64]:
 
 
 # ------------------------------------------------------------------------------------------------- IK
-def _ik_step(J: NDArray, e: NDArray, dq_null: NDArray, at_lower: NDArray, at_upper: NDArray,
-             damping: float) -> NDArray:
-    """Damped least-squares step of the joints (columns of J) towards the tip error e, plus the null-space
-    part of dq_null; joints at a limit that the step would push out are frozen (re-solved without them)."""
-    free = np.ones(J.shape[1], dtype=bool)
-    dq = np.zeros(J.shape[1])
-    damping_matrix = damping**2 * np.eye(J.shape[0])
-    rhs = np.empty((J.shape[0], 2))
-    rhs[:, 0] = e
-    for _ in range(3):
-        Jf = J[:, free]
-        null = dq_null[free]
-        rhs[:, 1] = Jf @ null
-        x = np.linalg.solve(Jf @ Jf.T + damping_matrix, rhs)
-        dq = np.zeros(J.shape[1])
-        dq[free] = Jf.T @ (x[:, 0] - x[:, 1]) + null
-        out = free & ((at_lower & (dq < 0)) | (at_upper & (dq > 0)))
-        if not out.any():
-            break
-        free &= ~out
-        dq[~free] = 0.0
-    return dq
-
-
 def _ik(ctx: _Context, q_start: NDArray, fingers: Sequence[str], p_palm_targets: NDArray, joints: NDArray,
         q_ref: NDArray, weight: NDArray | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Joint angles whose tip centres of `fingers` reach `p_palm_targets` (len(fingers), 3), palm frame,
-    as closely as the joint limits allow.
-
-    Only `joints` (indices into q) move, within the hand's limits; q_start (n,) is the first iterate and
-    q_ref (n,) the posture the null space is pulled to. `weight` (3, 3) weighs every tip's error (the
-    directions that matter most; None: I). Iterates until the largest weighted error is below
-    `_IK_CONVERGED`, stops making progress, or `ik_max_iters`. Returns q and the tip errors
-    (len(fingers), 3), m.
-    """
-    hand, o = ctx.hand, ctx.options
-    rows = [hand.fingers.index(f) for f in fingers]
-    W = np.eye(3) if weight is None else weight
-    lo, hi = hand.q_lower[joints], hand.q_upper[joints]
-    q = np.clip(q_start, hand.q_lower, hand.q_upper)
-    e = p_palm_targets - hand.tip_positions(q)[rows]
-    err = float(np.abs(e @ W.T).max())
-    for _ in range(o.ik_max_iters):
-        if err <= _IK_CONVERGED:
-            break
-        J = np.concatenate([W @ hand.tip_jacobian(q, f)[:, joints] for f in fingers])
-        qj = q[joints]
-        dq = _ik_step(J, (e @ W.T).ravel(), q_ref[joints] - qj, qj <= lo + 1e-12, qj >= hi - 1e-12,
-                      o.ik_damping)
-        largest = float(np.abs(dq).max())
-        if largest > 0.2:  # at most 0.2 rad per iteration
-            dq *= 0.2 / largest
-        q_new = q.copy()
-        q_new[joints] = np.minimum(np.maximum(qj + dq, lo), hi)
-        e_new = p_palm_targets - hand.tip_positions(q_new)[rows]
-        err_new = float(np.abs(e_new @ W.T).max())
-        if err_new >= err:
-            break  # no progress (joint limits, or the null-space pull at convergence): keep q
-        stalled = err_new > 0.8 * err
-        q, e, err = q_new, e_new, err_new
-        if stalled:
-            break
-    return q, e
+    """`tip_ik.tip_ik` with the options' damping and iteration limit."""
+    o = ctx.options
+    return tip_ik(ctx.hand, q_start, fingers, p_palm_targets, joints, q_ref, weight, damping=o.ik_damping,
+                  max_iters=o.ik_max_iters)
 
 
 def _held_joints(ctx: _Context, q: NDArray, joints: NDArray) -> str:
     """" (joints at their limits: a, b)" for the joints of `joints` at a limit at q, else ""."""
-    hand = ctx.hand
-    held = [hand.joint_names[j] for j in joints
-            if q[j] <= hand.q_lower[j] + 1e-9 or q[j] >= hand.q_upper[j] - 1e-9]
+    held = joints_at_limits(ctx.hand, q, joints)
     return f" (joints at their limits: {', '.join(held)})" if held else ""
 
 
@@ -369,9 +329,38 @@ def _contact_normal_palm(ctx: _Context, step: PlanStep, finger: str) -> NDArray[
     return T[:3, :3] @ (n / np.linalg.norm(n))
 
 
-def _lift(ctx: _Context, q0: NDArray, finger: str, n_palm: NDArray) -> tuple[NDArray[np.float64], str]:
-    """Knots (k, n) lifting the finger's tip centre from where it is at q0 by `lift_height` along n_palm."""
-    hand, h = ctx.hand, ctx.options.lift_height
+def _clear_lift(ctx: _Context, q0: NDArray, finger: str, n_palm: NDArray) -> tuple[NDArray[np.float64], str]:
+    """`_lift` by `lift_height`, else lower (3/5, 2/5 of it), else leaning 25°, 40° away from the closest
+    other finger, when the lift brings the finger closer to another than `self_clearance` (and than at
+    q0); if every one does, the one that keeps it farthest from the others."""
+    o = ctx.options
+    floor = min(o.self_clearance or 0.0, float(ctx.self_distance(q0[None], finger)[0])) - 1e-9
+    best: tuple[tuple, NDArray[np.float64], str] | None = None
+    tries = [(n_palm, f) for f in (1.0, 0.6, 0.4)]
+    pairs = ctx.self_pairs.get(finger, np.zeros((0, 2), dtype=int))
+    if len(pairs):  # away from the closest sphere of another finger (or the palm), in the tangent plane
+        C, r = ctx.centers(q0[None])[0], ctx.radii
+        a, b = pairs[int(np.argmin(np.linalg.norm(C[pairs[:, 0]] - C[pairs[:, 1]], axis=1)
+                                   - r[pairs[:, 0]] - r[pairs[:, 1]]))]
+        v = (C[a] - C[b]) * (1.0 if ctx.sphere_finger[a] == finger else -1.0)
+        u = v - (v @ n_palm) * n_palm
+        leans = [n_palm + math.tan(math.radians(deg)) * u / max(np.linalg.norm(u), 1e-12) for deg in (25, 40)]
+        tries += [(d / np.linalg.norm(d), f) for d in leans for f in (1.0, 0.6)]
+    for direction, fraction in tries:
+        knots, why = _lift(ctx, q0, finger, direction, fraction * o.lift_height)
+        gap = float(np.min(ctx.self_distance(knots, finger)))
+        key = (gap >= floor, not why, gap)  # clear of the others first, then within the lean limit
+        if key[0] and key[1]:
+            return knots, why
+        best = best if best is not None and best[0] >= key else (key, knots, why)
+    assert best is not None
+    return best[1], best[2]
+
+
+def _lift(ctx: _Context, q0: NDArray, finger: str, n_palm: NDArray,
+          h: float) -> tuple[NDArray[np.float64], str]:
+    """Knots (k, n) lifting the finger's tip centre from where it is at q0 by h (m) along n_palm."""
+    hand = ctx.hand
     p0 = hand.tip_positions(q0)[hand.fingers.index(finger)]
     joints = hand.finger_joints[finger]
     along = np.outer(n_palm, n_palm)
@@ -418,44 +407,50 @@ def _max_lean(ctx: _Context, knots: NDArray, finger: str, n: NDArray) -> float:
 
 
 def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDArray, T: NDArray,
-             also: NDArray) -> tuple[NDArray[np.float64], float, str, NDArray[np.float64]]:
+             also: NDArray) -> tuple[NDArray[np.float64], float, float, str, NDArray[np.float64]]:
     """Transit knots (k, n) from q_a to q_b, linear in joint space, directly or through one via point
-    raised by `via_heights` along n_mid (palm frame); the first whose finger spheres keep ≥ β, else the
-    one with the largest clearance.
+    raised by `via_heights` along n_mid (palm frame); the first whose finger spheres keep ≥ β from the
+    object and ≥ `self_clearance` from the other fingers, else the one with the largest margin.
 
     The clearance of the finger's spheres at the knots `also` (j, n) is computed with the first attempt
-    (one query). Returns (knots, min clearance m, why, clearance of `also` (j, spheres) m).
+    (one query). Returns (knots, min clearance m, min distance to the other fingers m, why, clearance
+    of `also` (j, spheres) m).
     """
     hand, o = ctx.hand, ctx.options
     spheres = ctx.finger_spheres(finger)
     r = hand.fingers.index(finger)
     p_mid = 0.5 * (hand.tip_positions(q_a)[r] + hand.tip_positions(q_b)[r])
     q_mid = 0.5 * (q_a + q_b)
-    best: tuple[NDArray, float, str] | None = None
+    best: tuple[NDArray, float, str, float, float] | None = None
     clear_also = np.zeros((0, len(spheres)))
-    for height in (None, *o.via_heights):
+    for attempt, height in enumerate((None, *o.via_heights)):
         waypoints = [q_a, q_b]
         if height is not None:
             via, _ = _ik(ctx, q_mid, [finger], (p_mid + height * n_mid)[None], hand.finger_joints[finger],
-                         q_mid)  # as high as the joint limits allow: the clearance judges it
+                         q_mid)  # as high as the joint limits allow: the clearances judge it
             waypoints = [q_a, via, q_b]
         legs = [_knots(ctx, _linear(a, b), 2, linear=True)[1:]
                 for a, b in zip(waypoints, waypoints[1:], strict=False)]
         Q = np.concatenate([legs[0][0]] + [leg[0][1:] for leg in legs[1:]])
-        first = height is None
+        first = attempt == 0
         Q_all = np.concatenate([Q, also]) if first else Q
         clear_all = ctx.clearance(Q_all, np.repeat(T[None], len(Q_all), axis=0), spheres, o.beta)
         if first:
             clear_also = clear_all[len(Q):]
-        clear = float(np.min(clear_all[: len(Q)]))
+        clear, self_clear = float(np.min(clear_all[: len(Q)])), float(np.min(ctx.self_distance(Q, finger)))
         why = "; ".join(w for _, w in legs if w)
-        if best is None or clear > best[1]:
-            best = (Q, clear, why)
-        if clear >= o.beta:
-            return Q, clear, why, clear_also
+        margin = min(clear - o.beta, self_clear - (o.self_clearance or 0.0))
+        if best is None or margin > best[1]:
+            best = (Q, margin, why, clear, self_clear)
+        if margin >= 0.0:
+            break
     assert best is not None
-    return best[0], best[1], "; ".join(w for w in (best[2], f"transit clearance {best[1] * 1e3:.3f} mm "
-                                                   f"< β = {o.beta * 1e3:.3f} mm") if w), clear_also
+    Q, margin, why, clear, self_clear = best
+    if clear < o.beta:
+        why += f"; transit clearance {clear * 1e3:.3f} mm < β = {o.beta * 1e3:.3f} mm"
+    if o.self_clearance is not None and self_clear < o.self_clearance:
+        why += f"; transit {self_clear * 1e3:.3f} mm from another finger < {o.self_clearance * 1e3:.3f} mm"
+    return Q, clear, self_clear, why.strip("; "), clear_also
 
 
 def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
@@ -469,14 +464,14 @@ def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     hand, o, finger = ctx.hand, ctx.options, str(b.finger)
     T = np.asarray(b.T_palm_object, dtype=float)
     n_a, n_b = _contact_normal_palm(ctx, a, finger), _contact_normal_palm(ctx, b, finger)
-    lift, why_a = _lift(ctx, np.asarray(a.q, dtype=float), finger, n_a)
-    down, why_b = _lift(ctx, np.asarray(b.q, dtype=float), finger, n_b)
+    lift, why_a = _clear_lift(ctx, np.asarray(a.q, dtype=float), finger, n_a)
+    down, why_b = _clear_lift(ctx, np.asarray(b.q, dtype=float), finger, n_b)
     problems = [f"lift-off {w}" for w in [why_a] if w] + [f"touch-down {w}" for w in [why_b] if w]
     n_mid = n_a + n_b
     n_mid = n_mid / np.linalg.norm(n_mid) if np.linalg.norm(n_mid) > 0.3 else n_a
     # the finger's spheres at the lift-off and touch-down knots: with the transit's first query
-    transit, min_transit, why_t, clear = _transit(ctx, lift[-1], down[-1], finger, n_mid, T,
-                                                  np.concatenate([lift, down]))
+    transit, min_transit, self_transit, why_t, clear = _transit(ctx, lift[-1], down[-1], finger, n_mid, T,
+                                                                np.concatenate([lift, down]))
     problems += [why_t] if why_t else []
     Q = np.concatenate([lift, transit[1:], down[::-1][1:]])
     phases = ["lift"] * (len(lift) - 1) + ["transit"] * (len(transit) - 1) + ["touch_down"] * (len(down) - 1)
@@ -489,12 +484,16 @@ def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
         problems.append(f"a sphere of the {finger} finger is {-min_clear * 1e3:.3f} mm inside the object")
     if min_tip < -o.surface_tol:
         problems.append(f"the {finger} tip sinks {-min_tip * 1e3:.3f} mm into the object")
+    min_self = float(np.min(ctx.self_distance(np.concatenate([lift, down]), finger)))
+    if min_self < 0.0:
+        problems.append(f"the {finger} finger overlaps another by {-min_self * 1e3:.3f} mm")
     problems += _limit_problems(ctx, Q)
     r = hand.fingers.index(finger)
     rise = float(np.dot(hand.tip_positions(lift[-1])[r] - hand.tip_positions(lift[0])[r], n_a))
     lean = max(_max_lean(ctx, lift, finger, n_a), _max_lean(ctx, down, finger, n_b))
     metrics = {"lift_height": rise, "max_lift_angle": lean, "min_transit_clearance": min_transit,
-               "min_clearance": min_clear, "min_tip_clearance": min_tip,
+               "min_clearance": min_clear, "min_tip_clearance": min_tip, "min_self_clearance": min_self,
+               "min_transit_self_clearance": self_transit,
                "max_point_step": float(np.max(ctx.segment_motion(Q)))}
     return _timed(ctx, Q, np.repeat(T[None], len(Q), axis=0), phases, problems, metrics)
 
@@ -543,6 +542,7 @@ def _repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     clear = ctx.clearance(Q, Ts, others) if others.size else np.full((1, 1), math.inf)
     metrics = {"max_surface_error": float(np.max(surface)), "max_slip": float(np.max(slip)),
                "max_ik_error": ik_error[0], "min_clearance": float(np.min(clear)),
+               "min_self_clearance": float(np.min(ctx.self_distance(Q))),
                "max_point_step": float(np.max(ctx.segment_motion(Q)))}
     if metrics["max_surface_error"] > o.surface_tol:
         problems.append(f"a tip is {metrics['max_surface_error'] * 1e3:.3f} mm off the surface "
@@ -551,6 +551,8 @@ def _repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
         problems.append(f"a contact slips {metrics['max_slip'] * 1e3:.3f} mm (> {o.max_slip * 1e3:.2f} mm)")
     if metrics["min_clearance"] < 0.0:
         problems.append(f"a non-tip sphere is {-metrics['min_clearance'] * 1e3:.3f} mm inside the object")
+    if metrics["min_self_clearance"] < 0.0:
+        problems.append(f"two fingers overlap by {-metrics['min_self_clearance'] * 1e3:.3f} mm")
     problems += _limit_problems(ctx, Q)
     return _timed(ctx, Q, Ts, ["repose"] * (len(Q) - 1), problems, metrics)
 

@@ -24,6 +24,9 @@ order. At every step:
 * stability (`unstable_gait`, `verify_stability`): the fingers holding the object during the step have a
   certificate of the plan's kind (`options["stability"]`), recomputed with verify's μ and force bound
   (a metric only, "uncertified_steps", for a plan made without one);
+* the motion between the steps, sampled so that no point of the hand moves more than 1 mm between
+  samples (`regrasp_casadi.verify_motion`): penetration, self-collision, joint limits, held contacts,
+  slip (``motion_*``);
 * the plan's claims: a "converged" plan's last step has max contact error ≤ `zeta`.
 
 A new check is one function `check_x(ctx, step_index, step) -> list[Finding]` and one row of
@@ -49,6 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi import constants
+from regrasp_casadi import verify_motion as motion
 from regrasp_casadi.certificates import MAX_NORMAL_FORCE
 from regrasp_casadi.grasp_metrics import slip_between
 from regrasp_casadi.self_collision_checks import check_self_collision, check_self_collision_mesh
@@ -371,6 +375,11 @@ CHECK_TABLE: tuple[Check, ...] = (
     Check("self_collision_mesh", check_self_collision_mesh),
     Check("slide_path", check_slide_path),
     Check("unstable_gait", check_unstable_gait),
+    Check("motion_penetration", motion.check_motion_penetration),  # the motion, sampled: `verify_motion`
+    Check("motion_self_collision", motion.check_motion_self_collision),
+    Check("motion_joint_limit", motion.check_motion_joint_limits),
+    Check("motion_held_contact", motion.check_motion_held_contacts),
+    Check("motion_slip", motion.check_motion_slip),
     Check("converged_claim", check_converged_claim),
 )
 """Every check, in the order it runs on each step."""

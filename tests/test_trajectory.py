@@ -22,15 +22,20 @@ from regrasp_casadi.transforms import interpolate_pose, inv_T, make_T, rot_axis_
 
 REPO = Path(__file__).resolve().parents[1]
 GOLDEN_V1 = Path(__file__).resolve().parent / "data" / "plan_v1_box_rotate.json"
+BOX_GRASP = Path(__file__).resolve().parent / "data" / "box_rotate_pre_self_collision.yaml"
+"""A fixed problem file whose initial grasp the gait and reposing instances below are built from (the
+shipped problems are regenerated when the planner changes; this grasp is not). It predates the
+self-collision constraint: its index finger overlaps the middle one, so the geometric tests leave the
+self-clearance check off (`NO_SELF`) and one test shows that the check flags it."""
+NO_SELF = TrajectoryOptions(self_clearance=None)
 LIFT = 0.005  # the default lift height, m
 
 
 # ------------------------------------------------------------------------------------- the box instance
 @pytest.fixture(scope="module")
 def box():
-    """The box_rotate problem as shipped before the self-collision regeneration (tests/data; its index
-    finger has room to slide 8 mm up its face): hand, box object, its half extents (m), initial grasp."""
-    problem = RegraspProblem.load(REPO / "tests" / "data" / "box_rotate_pre_self_collision.yaml")
+    """`BOX_GRASP`: hand, box object (0.05 × 0.07 × 0.12 m), its half extents (m) and the initial grasp."""
+    problem = RegraspProblem.load(BOX_GRASP)
     half = np.asarray(problem.obj.spec["extents"], dtype=float) / 2.0
     q0, T0 = np.asarray(problem.grasp0.q), np.asarray(problem.grasp0.T_palm_object)
     return problem.hand, problem.obj, half, q0, T0
@@ -123,7 +128,7 @@ def _plan(steps: list[PlanStep]) -> Plan:
 def test_gait_tip_path_on_the_box_is_the_closed_form(box, gait_steps):
     hand, obj, half, _, T = box
     a, b, face = gait_steps
-    path = plan_trajectories([a, b], hand, obj)[1]
+    path = plan_trajectories([a, b], hand, obj, NO_SELF)[1]
     assert path.ok, path.detail
     n_lift, n_down = path.phases.count("lift"), path.phases.count("touch_down")
     assert path.phases == ("lift",) * n_lift + ("transit",) * (len(path.phases) - n_lift - n_down) \
@@ -163,17 +168,30 @@ def test_gait_tip_path_on_the_box_is_the_closed_form(box, gait_steps):
 def test_a_transit_that_cannot_keep_beta_is_flagged(box, gait_steps):
     hand, obj, *_ = box
     a, b, _ = gait_steps
-    path = plan_trajectories([a, b], hand, obj, TrajectoryOptions(beta=0.05))[1]
+    path = plan_trajectories([a, b], hand, obj, TrajectoryOptions(beta=0.05, self_clearance=None))[1]
     assert not path.ok
     assert "transit clearance" in path.detail and "< β = 50.000 mm" in path.detail
     assert path.metrics["min_transit_clearance"] < 0.05
+
+
+def test_a_finger_through_another_finger_is_flagged(box, gait_steps):
+    hand, obj, *_ = box
+    a, b, _ = gait_steps
+    pairs = hand.self_collision_pairs("index")
+    start = float(np.min(hand.self_collision_distances(a.q, pairs)))
+    assert start < -1e-3  # the grasp itself: index and middle spheres overlap by millimetres
+    path = plan_trajectories([a, b], hand, obj)[1]  # default: self-clearance 1 mm
+    assert not path.ok
+    assert "from another finger < 1.000 mm" in path.detail
+    assert "the index finger overlaps another by" in path.detail
+    assert path.metrics["min_self_clearance"] <= start + 1e-12
 
 
 # ------------------------------------------------------------------------------------------ reposing
 def test_reposing_path_keeps_every_tip_on_the_surface_and_its_contact(box, repose_steps):
     hand, obj, half, *_ = box
     a, b = repose_steps
-    path = plan_trajectories([a, b], hand, obj)[1]
+    path = plan_trajectories([a, b], hand, obj, NO_SELF)[1]
     assert path.ok, path.detail
     assert np.array_equal(path.q[0], a.q) and np.array_equal(path.q[-1], b.q)
     assert np.array_equal(path.T_palm_object[0], a.T_palm_object)
@@ -202,7 +220,7 @@ def test_reposing_path_keeps_every_tip_on_the_surface_and_its_contact(box, repos
 def test_a_reposing_the_joint_limits_cannot_follow_is_flagged(box):
     hand, obj, *_ = box
     a, b = _repose_steps(box, [0.3318, -0.8716, 0.3609], 20.88, [3.649, 2.367, -0.003])
-    path = plan_trajectories([a, b], hand, obj)[1]
+    path = plan_trajectories([a, b], hand, obj, NO_SELF)[1]
     assert not path.ok
     assert path.detail.startswith("IK: ") and "joints at their limits: " in path.detail
     assert path.metrics["max_ik_error"] > 5e-4
@@ -225,7 +243,7 @@ def _surface_points(hand, q: np.ndarray) -> np.ndarray:
 def test_no_point_of_the_hand_moves_more_than_1_mm_between_knots(box, gait_steps, repose_steps, which):
     hand, obj, *_ = box
     steps = gait_steps[:2] if which == "gait" else repose_steps
-    path = plan_trajectories(list(steps), hand, obj)[1]
+    path = plan_trajectories(list(steps), hand, obj, NO_SELF)[1]
     points = np.stack([_surface_points(hand, q) for q in path.q])
     moved = np.linalg.norm(np.diff(points, axis=0), axis=2)
     assert np.max(moved) <= 1e-3
@@ -246,7 +264,7 @@ def test_time_stamps_closed_form():
 def test_plan_sample_respects_the_joint_speed_limit(box, gait_steps, repose_steps, which):
     hand, obj, *_ = box
     steps = list(gait_steps[:2] if which == "gait" else repose_steps)
-    paths = plan_trajectories(steps, hand, obj)
+    paths = plan_trajectories(steps, hand, obj, NO_SELF)
     plan = _plan([steps[0], PlanStep(**{**steps[1].__dict__, "path": paths[1]})])
     t, q, _ = plan.sample(0.002)
     speed = np.max(np.abs(np.diff(q, axis=0)), axis=1) / np.diff(t)
@@ -305,7 +323,7 @@ def test_a_version_1_file_with_a_path_field_is_refused(tmp_path):
 def test_export_writes_the_joint_trajectory_as_csv(box, gait_steps, tmp_path, capsys):
     hand, obj, *_ = box
     a, b, _ = gait_steps
-    path = plan_trajectories([a, b], hand, obj)[1]
+    path = plan_trajectories([a, b], hand, obj, NO_SELF)[1]
     plan = _plan([a, PlanStep(**{**b.__dict__, "path": path})])
     plan_file = plan.save(tmp_path / "plan.json")
     out = tmp_path / "traj.csv"

@@ -73,7 +73,9 @@ def _valid_specs(hand, gait_left=-0.005, lift_right=0.0, roll0=0.0, follow=True)
 
 
 def _found(report):
-    return {(v.step, v.check, v.who) for v in report.violations}
+    """The static rows' findings (step, check, who); the motion rows (``motion_*``, see
+    tests/test_verify_motion.py) also see a planted fault of a step along the straight line to it."""
+    return {(v.step, v.check, v.who) for v in report.violations if not v.check.startswith("motion_")}
 
 
 def test_valid_plan_is_ok_with_closed_form_metrics(models):
@@ -151,7 +153,8 @@ def test_too_long_gait(models):
 def test_slip_during_repose(models):
     hand, obj = models
     report = verify(_plan(hand, obj, _valid_specs(hand, follow=False)), hand, obj)
-    slips = {(v.step, v.check, v.who): v.amount for v in report.violations}
+    slips = {(v.step, v.check, v.who): v.amount for v in report.violations
+             if not v.check.startswith("motion_")}
     assert slips == pytest.approx({(3, "slip", "left"): 0.004, (3, "slip", "right"): 0.004}, abs=1e-9)
 
 
