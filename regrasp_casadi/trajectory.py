@@ -50,12 +50,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.constants import BETA, SELF_CLEARANCE
-from regrasp_casadi.motion import (
-    DEFAULT_MAX_JOINT_SPEED,
-    DEFAULT_MIN_STEP_DURATION,
-    StepPath,
-    time_stamps,
-)
+from regrasp_casadi.motion import DEFAULT_MAX_JOINT_SPEED, DEFAULT_MIN_STEP_DURATION, StepPath, time_stamps
 from regrasp_casadi.tip_ik import joints_at_limits, tip_ik
 from regrasp_casadi.transforms import interpolate_pose, inv_T, transform_points
 

@@ -195,7 +195,9 @@ def test_lifting_the_thumb_drops_the_box(hand, box_problem, finger, dropped):
 def box_shift_plan(box_problem):
     from regrasp_casadi import plan_regrasp
 
-    plan = plan_regrasp(box_problem.grasp0, box_problem.grasp_goal, method="svd", self_clearance=None)
+    # the paper's planner (stability "none"): its plan has gaits with and without force closure
+    plan = plan_regrasp(box_problem.grasp0, box_problem.grasp_goal, method="svd", self_clearance=None,
+                        stability="none")
     # contacts within ζ; its final moves stop 10.9° short of the desired pose (issue 16: "pose_not_reached")
     assert plan.status in ("converged", "pose_not_reached"), plan.status_detail
     return plan
@@ -340,7 +342,8 @@ def test_surface_correction_puts_the_tips_on_the_simulated_pieces(hand, box_prob
     plan = make_plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
     d = surface_distances(build_model(hand, box_problem.obj), plan, hand, SimOptions())
     assert np.abs(d).max() < 5e-5
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "problems" / "soft-scrub_0.yaml"
+    # the pair as it was before its regeneration with the self-collision rule (the grasp measured here)
+    path = Path(__file__).resolve().parent / "data" / "soft-scrub_0_pre_self_collision.yaml"
     problem = RegraspProblem.load(path)
     g0 = problem.grasp0
     plan = make_plan(problem.hand, problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
