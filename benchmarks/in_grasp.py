@@ -20,8 +20,8 @@ grasp's configuration. Up to `--tries` samples per grasp.
 Each trial is `plan_regrasp(grasp0, grasp_goal)` with the goal contacts equal to the start contacts (so
 only the final in-grasp moves run, with their trajectories), judged by `verify` (the motion too).
 Reported: position and rotation error of the reached pose from the desired one (median / p90 / max),
-plan time, statuses, how the final moves stopped, first moves rejected from the (feasible) start, beside the relaxed-rigidity figures
-(median 0.6 mm, p90 ≈ 4 mm, max 17 mm, as quoted in issue 16). Measures; asserts nothing.
+plan time, statuses, how the final moves stopped, first moves rejected from the (feasible) start,
+beside the relaxed-rigidity figures (median 0.6 mm, p90 ≈ 4 mm, max 17 mm, as quoted in issue 16). Measures; asserts nothing.
 
     nice -n 10 python benchmarks/in_grasp.py --out benchmarks/results/in_grasp.json
     python benchmarks/in_grasp.py --objects box --hands 4 --grasps 1 --targets 2     # a quick look
