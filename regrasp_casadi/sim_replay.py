@@ -35,10 +35,9 @@ from regrasp_casadi.viewer import (
     Keyframe,
     _add_hand_geometry,
     _add_object,
-    _scene_bounds,
     _transform_tracks,
-    camera_offset,
     legend_entries,
+    stage_scene,
     step_label,
 )
 
@@ -52,7 +51,6 @@ logger = logging.getLogger(__name__)
 
 GHOST_COLOR = 0x009E73    # Okabe-Ito bluish green: the planned object pose
 GHOST_OPACITY = 0.35
-_ROOT = "regrasp"
 
 
 def sim_frames(report: SimReport, plan: Plan, hand, fps: float = 25.0) -> tuple[NDArray, list[Keyframe],
@@ -130,18 +128,7 @@ def sim_html(report: SimReport, plan: Plan, hand=None, obj=None, fps: float = 25
     vis = meshcat.Visualizer(window=window)
     # framed on the hand and the planned object poses (a dropped object may fly far)
     framing = [dataclasses.replace(f, T_palm_object=T) for f, T in zip(frames, T_plan, strict=True)]
-    center, radius = _scene_bounds(framing, obj)
-    T_world_palm = np.eye(4)
-    T_world_palm[:3, 3] = -center
-    vis["/Grid"].set_property("visible", False)
-    vis["/Axes"].set_property("visible", False)
-    vis["/Background"].set_property("top_color", [1.0, 1.0, 1.0])
-    vis["/Background"].set_property("bottom_color", [0.9, 0.92, 0.95])
-    off = camera_offset(framing, center, radius, hand)
-    vis["/Cameras/default"].set_transform(np.eye(4))
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [off[0], off[2], -off[1]])
-    root = vis[_ROOT]
-    root.set_transform(T_world_palm)
+    root, _, _ = stage_scene(vis, framing, hand, obj)
     _add_hand_geometry(root["hand"], hand)
     _add_object(root["object"], plan, obj)
     shaded = obj.mesh.smooth_shaded

@@ -271,6 +271,26 @@ def _rot_x90() -> NDArray:
     return T
 
 
+def stage_scene(vis, frames: list[Keyframe], hand: Hand, obj: ObjectModel):
+    """Light background, no grid, the camera framed on `frames`; returns (the scene root, T_world_palm
+    (4,4): the palm frame placed so that the scene centre is at the origin, where the camera looks, the
+    camera's distance from it, m)."""
+    center, radius = _scene_bounds(frames, obj)
+    T_world_palm = np.eye(4)
+    T_world_palm[:3, 3] = -center
+    vis["/Grid"].set_property("visible", False)
+    vis["/Axes"].set_property("visible", False)
+    vis["/Background"].set_property("top_color", [1.0, 1.0, 1.0])
+    vis["/Background"].set_property("bottom_color", [0.9, 0.92, 0.95])   # a light floor-like gradient
+    off = camera_offset(frames, center, radius, hand)
+    vis["/Cameras/default"].set_transform(np.eye(4))
+    # the camera lives in a frame rotated +90° about x (three.js y-up): world (a, b, c) -> (a, c, -b)
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [off[0], off[2], -off[1]])
+    root = vis[_ROOT]
+    root.set_transform(T_world_palm)
+    return root, T_world_palm, float(np.linalg.norm(off))
+
+
 def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Keyframe], fps: float,
                  *, static_frame: int = -1, scene_hud: bool = True) -> None:
     """Send geometry once, `frames[static_frame]` as the static pose, and the animation of transforms.
@@ -283,28 +303,14 @@ def _build_scene(vis, plan: Plan, hand: Hand, obj: ObjectModel, frames: list[Key
     """
     import meshcat.animation as mca
 
-    center, radius = _scene_bounds(frames, obj)
-    T_world_palm = np.eye(4)
-    T_world_palm[:3, 3] = -center   # the scene centre at the origin, where the camera looks
-
-    vis["/Grid"].set_property("visible", False)
-    vis["/Axes"].set_property("visible", False)
-    vis["/Background"].set_property("top_color", [1.0, 1.0, 1.0])
-    vis["/Background"].set_property("bottom_color", [0.9, 0.92, 0.95])   # a light floor-like gradient
-    off = camera_offset(frames, center, radius, hand)
-    vis["/Cameras/default"].set_transform(np.eye(4))
-    # the camera lives in a frame rotated +90° about x (three.js y-up): world (a, b, c) -> (a, c, -b)
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [off[0], off[2], -off[1]])
-    root = vis[_ROOT]
-    root.set_transform(T_world_palm)
-
+    root, _, camera_distance = stage_scene(vis, frames, hand, obj)
     _add_hand_geometry(root["hand"], hand)
     _add_object(root["object"], plan, obj)
     _add_contact_markers(root["contacts"], plan)
     if scene_hud:
         labels = [step_label(plan, i) for i in range(len(plan.steps))]
-        add_step_labels(vis[LABELS], labels, float(np.linalg.norm(off)), frames[static_frame].step)
-        add_legend(vis[LEGEND], legend_entries(plan, hand, obj), float(np.linalg.norm(off)))
+        add_step_labels(vis[LABELS], labels, camera_distance, frames[static_frame].step)
+        add_legend(vis[LEGEND], legend_entries(plan, hand, obj), camera_distance)
     _set_pose(root, plan, frames[static_frame])
     anim = mca.Animation(default_framerate=fps)
     _animate_transforms(anim, root, plan, frames, fps)
