@@ -23,6 +23,7 @@ from regrasp_casadi.constants import ZETA
 from regrasp_casadi.final_moves import FinalMoves, decide_status, pose_distance, run_final_moves
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.grasp import require_grasp
+from regrasp_casadi.grasp_metrics import slip_between
 from regrasp_casadi.holding import STABILITY_KINDS, Holding, HoldingOptions
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
@@ -312,7 +313,7 @@ class _Run:
         if not self.holding.certified(cert):
             return f"its grasp is not certified ({cert.detail})"
         contacts, _ = self.holding.contacts(q, T_palm_object)
-        slip = np.linalg.norm(contacts - self.steps[-1].contacts_object, axis=1)
+        slip = slip_between(self.steps[-1].contacts_object, contacts)  # the one slip definition
         if np.max(slip) > self.holding.options.max_contact_slip:
             return f"a contact slips {np.max(slip) * 1e3:.2f} mm on the object"
         return ""
