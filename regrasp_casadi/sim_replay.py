@@ -26,13 +26,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.files import atomic_write_text
+from regrasp_casadi.keyframes import Keyframe
 from regrasp_casadi.meshcat_html import RecordingWindow, import_meshcat
 from regrasp_casadi.problem import plan_models
 from regrasp_casadi.replay_overlay import LegendEntry, overlay_html
 from regrasp_casadi.viewer import (
     LEGEND_HINT,
     OBJECT_COLOR,
-    Keyframe,
     _add_hand_geometry,
     _add_object,
     _transform_tracks,

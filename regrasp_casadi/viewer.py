@@ -1,9 +1,11 @@
-"""Plan viewer: a pure Plan -> keyframes function, and thin Meshcat front ends (live view, static HTML).
+"""Plan viewer: thin Meshcat front ends (live view, static HTML) over the plan's keyframes (`keyframes`).
 
-`plan_keyframes` turns a `Plan` into a list of `Keyframe`s — every link pose, the object pose and the
-current contacts in the palm frame at a given time — interpolating smoothly between consecutive steps
-(joints linearly with a smoothstep easing, object translation linearly and rotation by slerp), so that
-finger gaits and reposings are visible. There is one keyframe exactly at each step.
+`keyframes.plan_keyframes` turns a `Plan` into a list of `Keyframe`s — every link pose, the object pose
+and the current contacts in the palm frame at a given time: a plan with trajectories plays its motion
+(every step's `StepPath`: a gait's lift-off along the contact normal, transit and touch-down, a
+reposing, a slide) at its own time stamps scaled by `speed`, each step at least `MIN_STEP_SECONDS` on
+screen; a plan without paths interpolates its steps (smoothstep, `seconds_per_step` each). There is one
+keyframe exactly at each step. `Keyframe`, `plan_keyframes` and `step_times` are re-exported here.
 
 `show` (live viewer on localhost) and `write_html` (one self-contained HTML file that plays offline) are
 thin shells over Meshcat, imported lazily inside them (`import regrasp_casadi.viewer` never imports
@@ -16,16 +18,19 @@ meshcat nor starts a server). The scene, drawn in the palm frame:
 * the desired contacts as blue rings (`GOAL_COLOR`) fixed to the object frame (as in the paper's plan
   figures) and the current contacts as orange dots (`CONTACT_COLOR`; Okabe–Ito colours, told apart by
   shape too), each outlined in black and drawn over everything (their materials do not depth-test, and
-  they are drawn last), so that a contact behind the object or a finger stays visible;
+  they are drawn last), so that a contact behind the object or a finger stays visible. With the plan's
+  motion a dot rides on its fingertip and is hidden while a gait's finger is off the surface (from its
+  lift-off to its touch-down, `Keyframe.contacts_visible`);
 * what is happening: the label of the step being moved into ("gait 3/33: index finger", `step_label`).
   The static HTML shows it in an HTML overlay (`replay_overlay`) with a progress bar and a legend of the
   colours; the live viewer shows it as a Meshcat `_text` plane attached to the camera, one per step
   whose `visible` flag is animated. The HTML `<title>` names the plan (steps, method, status).
 
-Only transforms and visibility are animated; geometry is sent once. The static HTML's static scene
-is the final step (what a page shows if it does not play the animation); the live viewer's is the
-first. The static HTML is produced without a Meshcat server: the commands are recorded in-process and
-assembled the way Meshcat's own `static_html()` does, with the animation last (`meshcat_html`).
+Only transforms and visibility are animated (no track keeps the interior keys of a constant run);
+geometry is sent once. The static HTML's static scene is the final step (what a page shows if it does not
+play the animation); the live viewer's is the first. The static HTML is produced without a Meshcat
+server: the commands are recorded in-process and assembled the way Meshcat's own `static_html()` does,
+with the animation last (`meshcat_html`).
 """
 
 from __future__ import annotations
@@ -33,16 +38,16 @@ from __future__ import annotations
 import contextlib
 import io
 import logging
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from regrasp_casadi.files import atomic_write_text
 from regrasp_casadi.hand_visuals import hand_colors, hand_visuals
+from regrasp_casadi.keyframes import DEFAULT_SPEED, Keyframe, plan_keyframes, step_times
 from regrasp_casadi.meshcat_html import RecordingWindow, import_meshcat, mesh_in_order
 from regrasp_casadi.problem import plan_models
 from regrasp_casadi.replay_overlay import LegendEntry, overlay_html
@@ -61,7 +66,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.plan import Plan
 
 __all__ = ["Keyframe", "plan_keyframes", "step_times", "write_html", "show", "scene_html",
-           "stop_live_viewers"]
+           "stop_live_viewers", "DEFAULT_SPEED"]
 
 logger = logging.getLogger(__name__)
 
@@ -81,119 +86,6 @@ MARKER_RENDER_ORDER = 10    # three.js renderOrder of the markers: drawn after t
 _ROOT = "regrasp"          # under /meshcat
 
 LIVE_VIEWERS: list = []     # live visualizers started by `show` (kept alive here)
-
-
-@dataclass(frozen=True)
-class Keyframe:
-    """The scene at one instant of the replay (palm frame).
-
-    Attributes:
-        time: time since the start of the replay, s.
-        step: index of the plan step being moved into (the segment from step i-1 to step i belongs to
-            step i); at a step time, exactly that step.
-        alpha: progress from step `step - 1` to step `step`, in [0, 1] (1 at the step itself; 1 for step 0).
-        kind: `plan.steps[step].kind` ("initial" | "gait" | "repose" | "final").
-        finger: `plan.steps[step].finger` (the finger moved by a gait, else None).
-        q: (n,) joint angles, rad.
-        T_palm_link: link name -> (4, 4) pose of the link in the palm frame, for every link of the hand.
-        T_palm_object: (4, 4) object pose in the palm frame.
-        p_palm_contacts: (m, 3) current contact points in the palm frame, m, rows in `plan.fingers` order.
-    """
-
-    time: float
-    step: int
-    alpha: float
-    kind: str
-    finger: str | None
-    q: NDArray
-    T_palm_link: dict[str, NDArray]
-    T_palm_object: NDArray
-    p_palm_contacts: NDArray
-
-
-def _smoothstep(u: float) -> float:
-    """3u² − 2u³: eases in and out, equals u at 0, 0.5 and 1."""
-    return u * u * (3.0 - 2.0 * u)
-
-
-def step_times(plan: Plan, seconds_per_step: float = 0.8) -> NDArray:
-    """Time of each step in the replay: `i * seconds_per_step`, s, shape (len(plan.steps),)."""
-    return np.arange(len(plan.steps), dtype=float) * float(seconds_per_step)
-
-
-def plan_keyframes(
-    plan: Plan,
-    hand: Hand | None = None,
-    obj: ObjectModel | None = None,
-    fps: float = 30,
-    seconds_per_step: float = 0.8,
-    easing: bool = True,
-) -> list[Keyframe]:
-    """Keyframes of the replay of `plan`, with one keyframe exactly at each step.
-
-    Between step i-1 (time (i-1)·Δ) and step i (time i·Δ, Δ = `seconds_per_step`) there are
-    `k = max(1, round(fps·Δ))` frames at `u = j/k`, j = 1..k; with `s = smoothstep(u)` (or `s = u` without
-    easing): `q(s) = q_{i-1} + s (q_i - q_{i-1})`; object translation `t_{i-1} + s (t_i - t_{i-1})`,
-    rotation `slerp(R_{i-1}, R_i, s)`; contacts `T_palm_object(s) · (c_{i-1} + s (c_i - c_{i-1}))` with
-    `c` in the object frame. Links come from `hand.fk(q)`.
-
-    Args:
-        plan: the plan to replay.
-        hand: the plan's hand (default: rebuilt from the plan, `problem.plan_models`).
-        obj: the plan's object (unused for the poses, accepted for symmetry).
-        fps: frames per second of the interpolation (> 0).
-        seconds_per_step: replay duration of one step, s (> 0).
-        easing: smoothstep easing between steps (True) or constant speed (False).
-
-    Returns:
-        `1 + (len(plan.steps) - 1) * k` keyframes in time order.
-
-    Raises:
-        ValueError: empty plan or non-positive fps / seconds_per_step.
-    """
-    if not plan.steps:
-        raise ValueError("plan has no steps")
-    if fps <= 0 or seconds_per_step <= 0:
-        raise ValueError(f"fps and seconds_per_step must be positive, got {fps} and {seconds_per_step}")
-    hand, _ = plan_models(plan, hand, obj)
-    k = max(1, int(round(fps * seconds_per_step)))
-    times = step_times(plan, seconds_per_step)
-
-    def frame(i: int, u: float) -> Keyframe:
-        step = plan.steps[i]
-        s = (_smoothstep(u) if easing else u) if i > 0 else 1.0
-        if i == 0 or u >= 1.0:
-            q = np.asarray(step.q, dtype=float)
-            T_po = np.asarray(step.T_palm_object, dtype=float)
-            c_obj = np.asarray(step.contacts_object, dtype=float)
-            t = float(times[i])
-        else:
-            prev = plan.steps[i - 1]
-            q0, q1 = np.asarray(prev.q, float), np.asarray(step.q, float)
-            q = q0 + s * (q1 - q0)   # exact where a joint does not move
-            T0 = np.asarray(prev.T_palm_object, float)
-            T1 = np.asarray(step.T_palm_object, float)
-            if np.array_equal(T0, T1):
-                T_po = T0.copy()
-            else:
-                slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([T0[:3, :3], T1[:3, :3]])))
-                T_po = np.eye(4)
-                T_po[:3, :3] = slerp([s]).as_matrix()[0]
-                T_po[:3, 3] = T0[:3, 3] + s * (T1[:3, 3] - T0[:3, 3])
-            c0 = np.asarray(prev.contacts_object, float)
-            c_obj = c0 + s * (np.asarray(step.contacts_object, float) - c0)
-            t = float(times[i - 1] + u * (times[i] - times[i - 1]))
-        p_palm = c_obj @ T_po[:3, :3].T + T_po[:3, 3]
-        T_links = {name: np.asarray(T, dtype=float) for name, T in hand.fk(q).items()}
-        return Keyframe(
-            time=t, step=i, alpha=float(u) if i > 0 else 1.0, kind=step.kind, finger=step.finger, q=q,
-            T_palm_link=T_links, T_palm_object=T_po, p_palm_contacts=p_palm,
-        )
-
-    frames = [frame(0, 1.0)]
-    for i in range(1, len(plan.steps)):
-        frames.extend(frame(i, j / k) for j in range(1, k + 1))
-    return frames
 
 
 def _scene_bounds(frames: list[Keyframe], obj: ObjectModel) -> tuple[NDArray, float]:
@@ -402,6 +294,20 @@ def _animate_transforms(anim, root, plan: Plan, frames: list[Keyframe], fps: flo
     for r, finger in enumerate(plan.fingers):
         Ts = np.stack([_translation(f.p_palm_contacts[r]) for f in frames])
         _transform_tracks(anim, root["contacts"][str(finger)].path, key_frames, Ts, fps)
+        shown = [f.contacts_visible is None or bool(f.contacts_visible[r]) for f in frames]
+        if not all(shown):
+            _visibility_track(anim, root["contacts"][str(finger)].path, key_frames, shown, fps)
+
+
+def _visibility_track(anim, path, frames: list[float], shown: list[bool], fps: float) -> None:
+    """A boolean (discrete: each value holds until the next key) `visible` track with a key at the first
+    frame and wherever the value changes."""
+    import meshcat.animation as mca
+
+    keys = [j for j in range(len(shown)) if j == 0 or shown[j] != shown[j - 1]]
+    clip = anim.clips.setdefault(path, mca.AnimationClip(fps=fps))
+    clip.tracks["visible"] = mca.AnimationTrack("visible", "boolean", [float(frames[j]) for j in keys],
+                                                [shown[j] for j in keys])
 
 
 def _translation(p: NDArray) -> NDArray:
@@ -457,15 +363,15 @@ def legend_entries(plan: Plan, hand: Hand, obj: ObjectModel) -> list[LegendEntry
 
 
 def scene_html(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, fps: float = 8,
-               seconds_per_step: float = 0.8) -> str:
+               seconds_per_step: float = 0.8, *, speed: float = DEFAULT_SPEED) -> str:
     """The self-contained HTML replay of `plan` as a string (see `write_html`)."""
     meshcat = import_meshcat()
     hand, obj = plan_models(plan, hand, obj)
-    frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
+    frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step, speed=speed)
     window = RecordingWindow()
     vis = meshcat.Visualizer(window=window)
     _build_scene(vis, plan, hand, obj, frames, fps, scene_hud=False)
-    times = step_times(plan, seconds_per_step)
+    times = [f.time for f in frames if f.alpha >= 1.0]   # = step_times(plan, seconds_per_step, speed)
     subtitle = (f"{obj.name} · method {plan.method} · {plan.status} after {plan.iterations} "
                 f"iteration{'s' if plan.iterations != 1 else ''}")
     window.overlay = overlay_html(subtitle, [step_label(plan, i) for i in range(len(plan.steps))], times,
@@ -476,35 +382,42 @@ def scene_html(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = N
 
 
 def write_html(plan: Plan, path: str | Path, hand: Hand | None = None, obj: ObjectModel | None = None,
-               fps: float = 8, seconds_per_step: float = 0.8) -> Path:
+               fps: float = 8, seconds_per_step: float = 0.8, *, speed: float = DEFAULT_SPEED) -> Path:
     """Write ONE self-contained HTML file (three.js/Meshcat bundle included) that replays `plan` offline.
+
+    A plan with paths plays its motion (`keyframes`): `speed` plan seconds per replay second, each step
+    at least `keyframes.MIN_STEP_SECONDS` s, keyframes where the motion needs them (three.js interpolates
+    in between). A plan without paths interpolates its steps, `seconds_per_step` s each, `fps` frames per
+    second. The replay ends at `step_times(plan, seconds_per_step, speed)[-1]` s.
 
     Args:
         plan: the plan.
         path: output file (parent folders are created).
         hand, obj: the plan's hand and object (default: rebuilt from the plan's specs).
-        fps: animation keyframes per second (three.js interpolates in between).
-        seconds_per_step: replay duration of one step, s.
+        fps: keyframes per second of interpolated steps; the animation's frame unit.
+        seconds_per_step: replay duration of one interpolated step, s.
+        speed: plan seconds played per replay second, with the plan's motion (> 0; 1: its own time).
 
     Returns:
         The path written.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    html = scene_html(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
+    html = scene_html(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step, speed=speed)
     atomic_write_text(path, html)
     logger.info("wrote %s (%.0f kB)", path, path.stat().st_size / 1e3)
     return path
 
 
 def show(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, fps: float = 30,
-         seconds_per_step: float = 0.8, zmq_url: str | None = None, host: str = "127.0.0.1"):
+         seconds_per_step: float = 0.8, zmq_url: str | None = None, host: str = "127.0.0.1",
+         *, speed: float = DEFAULT_SPEED):
     """Start a live Meshcat viewer, load the scene and play the plan.
 
     Meshcat's own start-up message is swallowed; nothing is printed.
 
     Args:
-        plan, hand, obj, fps, seconds_per_step: as for `write_html`.
+        plan, hand, obj, fps, seconds_per_step, speed: as for `write_html`.
         zmq_url: a running Meshcat server to draw in (default: start one, see `live_server`).
         host: address the started server's web page listens on: 127.0.0.1 (default) is this machine
             only; another address (e.g. 0.0.0.0) makes the viewer reachable from other machines.
@@ -519,7 +432,7 @@ def show(plan: Plan, hand: Hand | None = None, obj: ObjectModel | None = None, f
     """
     meshcat = import_meshcat()
     hand, obj = plan_models(plan, hand, obj)
-    frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step)
+    frames = plan_keyframes(plan, hand, obj, fps=fps, seconds_per_step=seconds_per_step, speed=speed)
     if zmq_url is None:
         from regrasp_casadi.live_server import start_server
 
