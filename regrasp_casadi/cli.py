@@ -2,13 +2,13 @@
 
     regrasp plan PROBLEM.yaml --method svd --out plan.json [--html replay.html] [--view] [--max-iters N]
     regrasp verify plan.json [--all] [--zeta MM] [--eta MM] [--surface-tol MM] [--max-slip MM] ...
-    regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]]
+    regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]] [--speed X]
     regrasp simulate plan.json [--gravity X Y Z] [--html sim.html] [--json report.json]
     regrasp export plan.json --csv traj.csv [--dt 0.01]
     regrasp grasps MESH_OR_PROBLEM [--hand MODEL] [--n N] [--seed S] [--out problems/x.yaml]
     regrasp bench [--backend process|ray|serial] [--address ADDR] [ARGS ...]
                                       (runs benchmarks/paper_objects.py)
-    regrasp demo [--out-dir DIR] [--method svd]
+    regrasp demo [--out-dir DIR] [--method svd] [--speed X]
 
 Exit codes:
     0  success (for `plan` / `demo`: the plan converged and `verify` accepts it; for `verify`: verified)
@@ -113,7 +113,7 @@ def _verify(plan: Plan, hand=None, obj=None, show_progress: bool = False, **tole
 
 
 def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, elapsed: float,
-                 show_progress: bool = False) -> int:
+                 show_progress: bool = False, *, speed: float | None = None) -> int:
     """Verify, save, write the replay, print the summary; returns the exit code."""
     report = _verify(plan, hand, obj, show_progress)
     if out is not None:
@@ -122,7 +122,7 @@ def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, ela
     if html is not None:
         from regrasp_casadi.viewer import write_html
 
-        write_html(plan, html, hand=hand, obj=obj)
+        write_html(plan, html, hand=hand, obj=obj, **_speed(speed))
     err, (dp, dr) = plan.final_error, plan.final_pose_error
     print(f"plan: {plan.status} after {plan.iterations} iterations, {len(plan.steps)} steps "
           f"({plan.step_counts()}), method {plan.method}")
@@ -156,6 +156,11 @@ def _load_plan(path: str) -> Plan:
         raise PlanFormatError(f"{path}: cannot read plan file: {e}") from None
 
 
+def _speed(speed: float | None) -> dict[str, float]:
+    """`--speed` as a keyword of the viewer's functions (nothing: their default)."""
+    return {} if speed is None else {"speed": speed}
+
+
 def _hand(name: str):
     """`--hand`: a URDF file (``*.urdf``), or a hand model (a shipped model's name or a model folder)."""
     from regrasp_casadi.hand import Hand
@@ -163,7 +168,7 @@ def _hand(name: str):
     return Hand.from_urdf(name) if name.lower().endswith(".urdf") else Hand.from_model(name)
 
 
-def _view_live(plan: Plan, hand=None, obj=None, host: str = "127.0.0.1") -> int:
+def _view_live(plan: Plan, hand=None, obj=None, host: str = "127.0.0.1", speed: float | None = None) -> int:
     from regrasp_casadi.viewer import show
 
     def stop(signum, frame):  # SIGTERM ends like Ctrl-C, so that the Meshcat server is shut down
@@ -171,7 +176,7 @@ def _view_live(plan: Plan, hand=None, obj=None, host: str = "127.0.0.1") -> int:
 
     previous = signal.signal(signal.SIGTERM, stop)
     try:
-        url = show(plan, hand=hand, obj=obj, host=host)
+        url = show(plan, hand=hand, obj=obj, host=host, **_speed(speed))
         print(f"viewer: {url}  (Ctrl-C to stop)", flush=True)
         while True:
             time.sleep(1.0)
@@ -196,9 +201,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     progress = progress_enabled(args)
     plan = _run_plan(problem, args.method, args.max_iters, progress, args.stability)
-    code = _finish_plan(plan, problem.hand, problem.obj, out, html, time.perf_counter() - t0, progress)
+    code = _finish_plan(plan, problem.hand, problem.obj, out, html, time.perf_counter() - t0, progress,
+                        speed=args.speed)
     if args.view:
-        _view_live(plan, problem.hand, problem.obj, args.host)
+        _view_live(plan, problem.hand, problem.obj, args.host, args.speed)
     return code
 
 
@@ -223,20 +229,21 @@ def cmd_view(args: argparse.Namespace) -> int:
     if args.html or args.png:
         import tempfile
 
-        from regrasp_casadi.viewer import write_html
+        from regrasp_casadi.viewer import step_times, write_html
 
         with tempfile.TemporaryDirectory() as tmp:
-            path = write_html(plan, args.html or Path(tmp) / "replay.html")
+            path = write_html(plan, args.html or Path(tmp) / "replay.html", **_speed(args.speed))
             if args.html:
                 print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
             if args.png:
                 from regrasp_casadi.screenshot import screenshot
 
-                seconds = args.at if args.at is not None else 0.8 * len(plan.steps) + 1.0  # the end
+                end = float(step_times(plan, **_speed(args.speed))[-1])
+                seconds = args.at if args.at is not None else end + 1.0  # the end
                 png = screenshot(path, args.png, seconds=seconds)
                 print(f"wrote {png} (the replay at {seconds:.1f} s)")
         return EXIT_OK
-    return _view_live(plan, host=args.host)
+    return _view_live(plan, host=args.host, speed=args.speed)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -360,7 +367,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     progress = progress_enabled(args)
     plan = _run_plan(problem, args.method, None, progress)
     code = _finish_plan(plan, problem.hand, problem.obj, out_dir / "plan.json", out_dir / "replay.html",
-                        time.perf_counter() - t0, progress)
+                        time.perf_counter() - t0, progress, speed=args.speed)
     print(f"open {out_dir / 'replay.html'} in a browser to watch the regrasp")
     return code
 
@@ -370,6 +377,12 @@ def _add_host(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
                         help="address the live viewer listens on; 127.0.0.1 is this machine only, "
                              "0.0.0.0 opens it to the network")
+
+
+def _add_speed(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--speed", type=finite_positive_float, metavar="X",
+                        help="replay speed: plan seconds of motion per replay second (default: 1, the "
+                             "plan's own time; each step at least 0.3 s)")
 
 
 def _add_verify_arguments(sp: argparse.ArgumentParser) -> None:
@@ -390,6 +403,20 @@ def _add_verify_arguments(sp: argparse.ArgumentParser) -> None:
     sp.add_argument("--min-clearance", type=finite_float, metavar="MM",
                     help=f"required clearance of the non-tip collision spheres, mm {judged}")
     sp.set_defaults(func=cmd_verify)
+
+
+def _add_view_parser(add) -> None:
+    """The `view` subcommand (``add(name, help)`` makes a subparser)."""
+    sp = add("view", "replay a plan: live viewer on localhost, or a self-contained HTML file")
+    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
+    sp.add_argument("--html", metavar="REPLAY.html", help="write the HTML replay and exit")
+    sp.add_argument("--png", metavar="SHOT.png",
+                    help="write a screenshot of the replay (needs chromium) and exit")
+    sp.add_argument("--at", type=non_negative_float, metavar="SECONDS",
+                    help="replay time of the screenshot, s (default: the end)")
+    _add_host(sp)
+    _add_speed(sp)
+    sp.set_defaults(func=cmd_view)
 
 
 def _add_export_parser(add) -> None:
@@ -454,6 +481,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--html", metavar="REPLAY.html", help="also write a self-contained HTML replay")
     sp.add_argument("--view", action="store_true", help="open the live viewer after planning")
     _add_host(sp)
+    _add_speed(sp)
     sp.add_argument("--max-iters", type=non_negative_int, metavar="N",
                     help="planner iteration limit (default: 50, the planner's)")
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -461,16 +489,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     _add_verify_arguments(add("verify", "check a plan file with exact geometry and print the report"))
 
-    sp = add("view", "replay a plan: live viewer on localhost, or a self-contained HTML file")
-    sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
-    sp.add_argument("--html", metavar="REPLAY.html", help="write the HTML replay and exit")
-    sp.add_argument("--png", metavar="SHOT.png",
-                    help="write a screenshot of the replay (needs chromium) and exit")
-    sp.add_argument("--at", type=non_negative_float, metavar="SECONDS",
-                    help="replay time of the screenshot, s (default: the end)")
-    _add_host(sp)
-    sp.set_defaults(func=cmd_view)
-
+    _add_view_parser(add)
     add_simulate_parser(add, load_plan=_load_plan)
     _add_export_parser(add)
 
@@ -492,6 +511,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out-dir", default=".", metavar="DIR",
                     help="folder for plan.json and replay.html (default: the current directory)")
     sp.add_argument("--method", choices=("svd", "sd"), default="svd", help="in-grasp objective")
+    _add_speed(sp)
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
     sp.set_defaults(func=cmd_demo)
     return p

@@ -256,3 +256,17 @@ def test_a_plan_without_paths_still_interpolates_its_steps(v1_plan, models):
     s = 0.6 * 0.6 * (3 - 2 * 0.6)    # smoothstep
     q0, q1 = v1_plan.steps[1].q, v1_plan.steps[2].q
     np.testing.assert_allclose(mid.q, q0 + s * (q1 - q0), atol=1e-12)
+
+
+def test_view_speed_flag(motion_plan, tmp_path, capsys):
+    pytest.importorskip("meshcat")
+    from regrasp_casadi import cli
+
+    path = motion_plan.save(tmp_path / "plan.json")
+    out = tmp_path / "replay.html"
+    assert cli.main(["view", str(path), "--html", str(out), "--speed", "2"]) == 0
+    hud = _overlay(out.read_text(encoding="utf-8"))
+    np.testing.assert_allclose(hud["times"], _expected_step_times(motion_plan, 2.0), atol=1e-9)
+    capsys.readouterr()
+    assert cli.main(["view", str(path), "--html", str(out), "--speed", "0"]) == cli.EXIT_BAD_INPUT
+    assert "--speed" in capsys.readouterr().err
