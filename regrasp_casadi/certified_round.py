@@ -30,6 +30,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.staging import staging_error, staging_target, update_staging
+
 if TYPE_CHECKING:
     from regrasp_casadi.certificates import Certificate
     from regrasp_casadi.finger_gait import FingerGaitResult
@@ -48,12 +50,12 @@ _PATH_SAMPLES = 8
 def certified_round(run: _Run) -> None:
     """One gait round of `run` with certified holding sets (see the module docstring)."""
     o = run.options
+    update_staging(run)
     budget = {f: o.finger_gait.eta for f in run.gait}  # tip travel left to each finger this round, m
     slid = dict.fromkeys(run.gait, 0.0)  # slide travel of each finger this round, m
     blocked: set[str] = set()  # sliders that could not slide since another finger last moved
     while True:
-        err = run.steps[-1].contact_error
-        active = [f for f in run.gait if budget[f] > _MIN_MOVE and err[run.fingers.index(f)] > o.skip_tol]
+        active = [f for f in run.gait if budget[f] > _MIN_MOVE and _to_go(run, f) > o.skip_tol]
         lifts = {f: run.holding.lift(run.q, run.T_palm_object, f) for f in active}
         order = _order(run, active, lifts)
         if run.holding.options.slide:
@@ -75,6 +77,13 @@ def certified_round(run: _Run) -> None:
         _gait(run, finger, lifts[finger], rest)
         budget[finger] = 0.0
         blocked.clear()
+
+
+def _to_go(run: _Run, finger: str) -> float:
+    """How far `finger` is from where this round sends it, m: its staging target (`staging`), else its
+    goal contact."""
+    staged = staging_error(run, finger)
+    return float(run.steps[-1].contact_error[run.fingers.index(finger)]) if staged is None else staged
 
 
 def _order(run: _Run, fingers: list[str], lifts: dict[str, Certificate]) -> list[str]:
@@ -131,7 +140,9 @@ def _gait(run: _Run, finger: str, cert: Certificate, todo: list[str]) -> None:
     away = [f for f in todo or run.fingers if f != finger and err[run.fingers.index(f)] > zeta]
     keep = _movable(run, run.q, away) if ho.lookahead else {}
     sliders = [f for f in away if not run.holding.certified(run.holding.lift(run.q, run.T_palm_object, f))]
-    target = _support_target(run, finger, sliders) if sliders and ho.support_search else None
+    target = staging_target(run, finger)
+    if target is None and sliders and ho.support_search and run.staging is None:
+        target = _support_target(run, finger, sliders)
     first = None
     for attempt in range(max(1, ho.lookahead_tries) if ho.lookahead else 1):
         res = _solve(run, finger, None if attempt == 0 else eta, target)

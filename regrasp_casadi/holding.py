@@ -110,6 +110,11 @@ class HoldingOptions:
     support_switch: bool = True
     """While the plan makes no progress (every other `stall_escape` iterations without it), the support
     search uses the other `support_score`."""
+    staging: bool = True
+    """When the plan stalls (`PlannerOptions.stall_limit`), the last resort: a finger that can neither
+    lift nor slide to its goal with a certificate (the thumb against three fingers) gets a support
+    configuration of the others in which its whole slide is certified (`staging`), and the plan goes
+    on for `stall_limit` more iterations."""
     support_advance: float = 0.005
     """How far ahead towards its goal a slider's certificate is tried by the support search, m."""
 

@@ -246,6 +246,12 @@ class _Run:
         self.iterations = 0
         self.stalled = 0
         """Iterations since the largest contact error last dropped (`_ProgressWatch.stalled`)."""
+        self.staging_on = False
+        """Whether the certified round stages pinned fingers (`staging`): a stalled plan's last resort."""
+        self.staging = None
+        """The support configuration the certified round is moving towards (`staging.Staging`), or None."""
+        self.staging_failed: dict[str, int] = {}
+        """Pinned fingers whose staging search found nothing → the iteration it was tried."""
         self.gait = options.gait or gait_pattern(self.hand, step.contacts_object, self.goal_contacts)
         self.gait_nlps = {f: self.gait_nlp(f) for f in self.gait}
         self.svd_nlp = self.in_grasp_nlp("svd")  # SVD reposing, stall escape and final moves
@@ -317,6 +323,15 @@ class _Run:
         if np.max(slip) > self.holding.options.max_contact_slip:
             return f"a contact slips {np.max(slip) * 1e3:.2f} mm on the object"
         return ""
+
+    def start_staging(self) -> bool:
+        """Turn on the staging of pinned fingers (`staging`) when the plan has stalled; False when it is
+        already on, stability is off or `HoldingOptions.staging` is off (the plan then stops)."""
+        if self.holding is None or self.staging_on or not self.holding.options.staging:
+            return False
+        self.staging_on = True
+        _log.debug("stalled after %d iterations: staging pinned fingers", self.iterations)
+        return True
 
     def largest_error(self) -> float:
         """The largest contact error of the last step, m."""
@@ -458,7 +473,9 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
             return _make_plan(grasp0, grasp_goal, options, t_start, run, "interrupted",
                               f"interrupted (Ctrl-C) after {run.iterations} iterations; largest contact "
                               f"error {run.largest_error() * 1e3:.2f} mm")
-        if watch.exhausted:
+        if watch.exhausted and run.start_staging():
+            watch.stalled = 0  # the last resort gets `stall_limit` more iterations
+        elif watch.exhausted:
             if run.failures and len(run.steps) == n_steps_before:  # the last iteration could not move
                 return _make_plan(grasp0, grasp_goal, options, t_start, run, "solver_failure",
                                   "; ".join(run.failures))
