@@ -16,8 +16,9 @@ compiler (its path and version line), its flags and the backend's structural opt
 in a private temporary folder beside its target and renamed onto it (atomic), so two processes compiling
 the same NLP both succeed and either one's file is kept.
 
-Measured (benchmarks/README.md, "compiled NLPs"): gcc -O1 halves the Hessian's evaluation time but takes
-minutes per OPT2 NLP (its C source is ~17 MB), hence `DEFAULT` off.
+Measured (benchmarks/README.md, "Compiled NLPs"): per solve 1.4x (OPT1) and 1.5x (OPT2) faster, plans
+~25 % faster with the cache filled, but compiling takes ~6 min per YCB object (OPT1 ~35 s per finger,
+OPT2 ~3.5 min: its C source is ~17 MB), hence `DEFAULT` off.
 """
 
 from __future__ import annotations
@@ -43,8 +44,8 @@ _log = logging.getLogger(__name__)
 ENV_VAR = "REGRASP_COMPILE"
 """Environment variable of the process-wide switch: "1" compiles, "0" does not (unset: `DEFAULT`)."""
 DEFAULT = False
-"""Whether NLPs are compiled when neither the option nor `ENV_VAR` says (off: compilation takes minutes
-per OPT2 NLP for a per-solve gain of ~1.5×; see the module docstring)."""
+"""Whether NLPs are compiled when neither the option nor `ENV_VAR` says (off: compiling the NLPs of one
+object takes minutes, each a ~1.5x faster solve; see the module docstring)."""
 COMPILERS = ("cc", "gcc")
 """C compilers looked for on the PATH, in order."""
 CFLAGS = ("-O1", "-fPIC", "-shared")

@@ -2,7 +2,7 @@
 interpreted solver, the disk cache, and the fallback when no C compiler is found.
 
 The planner's NLPs are built on the shipped box problems (Allegro right hand, generated box 0.05 x 0.07 x
-0.12 m). OPT1 without its self-collision constraints (~5 s to compile) runs in the default test run; the
+0.12 m). OPT1 without its self-collision constraints (~3 s to compile) runs in the default test run; the
 planner's OPT1 (~30 s) and OPT2 (~2 min to compile with gcc -O1) are `slow`. The module gets its own
 empty cache (``$REGRASP_CACHE_DIR``), as on CI.
 """
@@ -78,7 +78,7 @@ def test_switch_and_option():
 
 @pytest.mark.skipif(compiled.find_compiler() is None, reason="no C compiler")
 @pytest.mark.parametrize("self_clearance", [
-    None,  # no self-collision constraints: a 6x smaller Hessian, ~5 s to compile (default run)
+    None,  # no self-collision constraints: a 6x smaller Hessian, ~3 s to compile (default run)
     pytest.param(SELF_CLEARANCE, marks=pytest.mark.slow),  # the planner's OPT1, ~30 s to compile
 ])
 def test_opt1_compiled_matches_interpreted_and_is_cached(jit_cache, monkeypatch, self_clearance):
