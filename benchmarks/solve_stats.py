@@ -9,12 +9,20 @@ measures an older checkout too — a before/after comparison on the same machine
     PYTHONPATH=. python benchmarks/solve_stats.py --out after.json benchmarks/problems/mustard_0.yaml ...
 
 Every plan is judged by `verify`. Measures and records (with machine and commit); asserts nothing.
+
+Compiled NLPs (`regrasp_casadi.compiled`) follow ``$REGRASP_COMPILE``; the output's "compiled" records
+the switch and every compiled solver built (name, compile or cache-load time):
+
+    REGRASP_COMPILE=0 python benchmarks/solve_stats.py --out interpreted.json P...
+    REGRASP_COMPILE=1 python benchmarks/solve_stats.py --out compiled.json P...   # twice: cold, then cached
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+import os
 import pathlib
 import sys
 import time
@@ -89,6 +97,19 @@ def measure(paths: list[str], methods: list[str]) -> dict:
     return out
 
 
+def _compiled_builds() -> dict | None:
+    """The compile switch and the compiled solvers built in this process (None: a checkout without
+    `regrasp_casadi.compiled`)."""
+    try:
+        from regrasp_casadi import compiled
+    except ImportError:
+        return None
+    builds = [dataclasses.asdict(r) for r in compiled.build_records()]
+    return {"enabled": compiled.enabled(None), "compiles": compiled.compile_count(), "builds": builds,
+            "compile_s": sum(b["seconds"] for b in builds if b["compiled"]),
+            "cache_load_s": sum(b["seconds"] for b in builds if not b["compiled"])}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("problems", nargs="+", help="problem files")
@@ -97,8 +118,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     from machine import machine_info
 
+    load_start = os.getloadavg()[0]
     out = measure(args.problems, args.methods)
+    out["compiled"] = _compiled_builds()
     out["machine"] = machine_info()
+    out["machine"]["load_1min_start"] = load_start
     args.out.write_text(json.dumps(out, indent=1))
     for kind in ("opt1", "opt2"):
         k = out[kind]
@@ -109,6 +133,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"opt2 moves {o['moves']}, median {o['move_median_ms']:.0f} ms, rejected {o['rejected']} "
           f"({o['rejected_share'] * 100:.1f} % of OPT2 move time); plan median {out['plan_time_median_s']:.1f} s, "
           f"outside the solvers {out['outside_solvers_share'] * 100:.1f} % (builds excluded)")
+    if out["compiled"] and out["compiled"]["builds"]:
+        c = out["compiled"]
+        print(f"compiled solvers: {len(c['builds'])}, {c['compiles']} compiled in {c['compile_s']:.1f} s, "
+              f"cache loads {c['cache_load_s']:.2f} s")
     return 0
 
 

@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from regrasp_casadi import solve_log
+from regrasp_casadi import compiled, solve_log
 from regrasp_casadi.constants import BETA, SELF_CLEARANCE
 
 __all__ = [
@@ -80,6 +80,9 @@ class SolverOptions:
     """Relaxation of the variable and constraint bounds (0: bounds hold exactly)."""
     linear_solver: str | None = "mumps"
     """Sparse linear solver of the Newton steps."""
+    compiled: bool | None = None
+    """Evaluate the NLP's functions from C compiled by the system compiler (`compiled`, cached on disk)
+    instead of CasADi's virtual machine; None: ``$REGRASP_COMPILE`` ("1"/"0"), else `compiled.DEFAULT`."""
 
 
 @dataclass(frozen=True)
@@ -140,8 +143,13 @@ def backend_options(options: SolverOptions) -> dict:
 
 def build_solver(name: str, nlp: dict, options: SolverOptions | None = None) -> ca.Function:
     """Build the solver of `nlp` ({"x", "p", "f", "g"} CasADi expressions) with `BACKEND`; `name` names
-    the CasADi function (it shows in profiles and in `solver.name()`)."""
-    return ca.nlpsol(name, BACKEND, nlp, backend_options(options or SolverOptions()))
+    the CasADi function (it shows in profiles and in `solver.name()`). Compiled to C when
+    `compiled.enabled(options.compiled)` (falling back to the interpreted solver if that fails)."""
+    options = options or SolverOptions()
+    opts = backend_options(options)
+    if compiled.enabled(options.compiled):
+        return compiled.solver(name, nlp, BACKEND, opts)
+    return ca.nlpsol(name, BACKEND, nlp, opts)
 
 
 @dataclass(frozen=True)

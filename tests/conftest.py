@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+
+os.environ["REGRASP_COMPILE"] = "0"  # NLPs interpreted (no compiler runs) unless a test asks otherwise
 
 REFERENCE_DIR = Path(__file__).resolve().parents[2] / "shared" / "reference"
 
