@@ -1,7 +1,7 @@
 """The `regrasp` command line: plan, verify, view, generate grasps, benchmark and demo.
 
     regrasp plan PROBLEM.yaml --method svd --out plan.json [--html replay.html] [--view] [--max-iters N]
-    regrasp verify plan.json [--all] [--zeta MM] [--eta MM] [--surface-tol MM] [--max-slip MM] ...
+    regrasp verify plan.json [--all] [--zeta MM] [--pose-tol-position MM] [--pose-tol-rotation DEG] ...
     regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]] [--speed X]
     regrasp simulate plan.json [--gravity X Y Z] [--html sim.html] [--json report.json]
     regrasp export plan.json --csv traj.csv [--dt 0.01]
@@ -208,13 +208,15 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return code
 
 
-_VERIFY_TOLERANCES_MM = ("zeta", "eta", "surface_tol", "max_slip", "min_clearance")
+_VERIFY_TOLERANCES_MM = ("zeta", "eta", "surface_tol", "max_slip", "min_clearance", "pose_tol_position")
 """`regrasp verify` flags (mm) passed to `verify(...)` as keyword arguments (m) when given."""
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
     plan = _load_plan(args.plan)
     tolerances = {k: getattr(args, k) * 1e-3 for k in _VERIFY_TOLERANCES_MM if getattr(args, k) is not None}
+    if args.pose_tol_rotation is not None:
+        tolerances["pose_tol_rotation"] = math.radians(args.pose_tol_rotation)
     report = _verify(plan, show_progress=progress_enabled(args), **tolerances)
     print(report.summary(max_violations=len(report.violations) if args.all else 20))
     return EXIT_OK if report.ok else EXIT_FAILED
@@ -394,6 +396,10 @@ def _add_verify_arguments(sp: argparse.ArgumentParser) -> None:
     judged = "(default: verify's own)"
     sp.add_argument("--zeta", type=finite_positive_float, metavar="MM",
                     help=f"largest final contact error a 'converged' plan may have, mm {judged}")
+    sp.add_argument("--pose-tol-position", type=finite_positive_float, metavar="MM",
+                    help=f"largest final object position error a 'converged' plan may have, mm {judged}")
+    sp.add_argument("--pose-tol-rotation", type=finite_positive_float, metavar="DEG",
+                    help=f"largest final object rotation error a 'converged' plan may have, deg {judged}")
     sp.add_argument("--eta", type=finite_positive_float, metavar="MM",
                     help=f"gait step bound on a fingertip, mm {judged}")
     sp.add_argument("--surface-tol", type=finite_positive_float, metavar="MM",

@@ -27,7 +27,8 @@ order. At every step:
 * the motion between the steps, sampled so that no point of the hand moves more than 1 mm between
   samples (`regrasp_casadi.verify_motion`): penetration, self-collision, joint limits, held contacts,
   slip (``motion_*``);
-* the plan's claims: a "converged" plan's last step has max contact error ≤ `zeta`.
+* the plan's claims: a "converged" plan's last step has max contact error ≤ `zeta` and its object
+  within `pose_tol_position` / `pose_tol_rotation` of the desired pose.
 
 A new check is one function `check_x(ctx, step_index, step) -> list[Finding]` and one row of
 `CHECK_TABLE`.
@@ -54,7 +55,7 @@ from numpy.typing import NDArray
 from regrasp_casadi import constants
 from regrasp_casadi import verify_motion as motion
 from regrasp_casadi.certificates import MAX_NORMAL_FORCE
-from regrasp_casadi.grasp_metrics import slip_between
+from regrasp_casadi.grasp_metrics import pose_error, slip_between
 from regrasp_casadi.self_collision_checks import check_self_collision, check_self_collision_mesh
 from regrasp_casadi.stability import torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
@@ -106,6 +107,10 @@ class Tolerances:
     """Gait step bound on the tip centre, m."""
     zeta: float = DEFAULT_ZETA
     """Largest contact error a "converged" plan may end with, m."""
+    pose_tol_position: float = 2e-3
+    """Largest distance of a "converged" plan's final object position from the desired one, m."""
+    pose_tol_rotation: float = float(np.radians(2.0))
+    """Largest angle of a "converged" plan's final object orientation from the desired one, rad."""
     max_slip: float = 1e-3
     """Allowed motion of a contact on the object during repose / final steps, m."""
     contact_consistency_tol: float = 0.5e-3
@@ -349,15 +354,27 @@ def check_slip(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
 
 
 def check_converged_claim(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
-    """A plan that says "converged" ends with a largest stored contact error ≤ zeta (verify's zeta,
-    not the plan's)."""
+    """A plan that says "converged" ends with a largest stored contact error ≤ zeta, and with the object
+    within `pose_tol_position` / `pose_tol_rotation` of the desired pose (the stored last and desired
+    poses; verify's tolerances, not the plan's)."""
     if k != len(ctx.plan.steps) - 1 or ctx.plan.status != "converged":
         return []
-    claimed, zeta = float(np.max(step.contact_error)), ctx.tol.zeta
-    if claimed <= zeta:
-        return []
-    return [Finding("", claimed, zeta, f"plan says converged but its last max contact error is "
-                                       f"{claimed * 1e3:.2f} mm > zeta {zeta * 1e3:.2f} mm")]
+    tol = ctx.tol
+    claimed = float(np.max(step.contact_error))
+    dp, dr = pose_error(step.T_palm_object, ctx.plan.goal_T_palm_object)
+    out = []
+    if claimed > tol.zeta:
+        out.append(Finding("", claimed, tol.zeta, f"plan says converged but its last max contact error is "
+                                                  f"{claimed * 1e3:.2f} mm > zeta {tol.zeta * 1e3:.2f} mm"))
+    if dp > tol.pose_tol_position:
+        out.append(Finding("object", dp, tol.pose_tol_position,
+                           f"plan says converged but the object ends {dp * 1e3:.2f} mm from the desired "
+                           f"position (> {tol.pose_tol_position * 1e3:.2f} mm)"))
+    if dr > tol.pose_tol_rotation:
+        out.append(Finding("object", dr, tol.pose_tol_rotation, f"plan says converged but the object ends "
+                           f"{np.degrees(dr):.2f}° from the desired orientation "
+                           f"(> {np.degrees(tol.pose_tol_rotation):.2f}°)"))
+    return out
 
 
 CHECK_TABLE: tuple[Check, ...] = (
@@ -411,6 +428,8 @@ def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regra
     limit_tol: float = 1e-6,
     eta: float = DEFAULT_ETA,
     zeta: float = DEFAULT_ZETA,
+    pose_tol_position: float = 2e-3,
+    pose_tol_rotation: float = float(np.radians(2.0)),
     max_slip: float = 1e-3,
     contact_consistency_tol: float = 0.5e-3,
     mu: float = constants.MU,
@@ -434,6 +453,8 @@ def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regra
         limit_tol: slack on joint limits, rad.
         eta: gait step bound on the tip centre, m.
         zeta: largest contact error a plan that says "converged" may end with, m.
+        pose_tol_position, pose_tol_rotation: how far (m, rad) a "converged" plan's final object pose may
+            be from the desired one.
         max_slip: allowed motion of a contact on the object during repose / final steps, m.
         contact_consistency_tol: allowed distance between a stored contact and the exact closest
             point of its tip centre (and between stored and recomputed contact errors), m.
@@ -459,6 +480,7 @@ def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regra
     hand, obj = plan_models(plan, hand, obj)
     tol = Tolerances(surface_tol=float(surface_tol), min_clearance=float(min_clearance),
                      limit_tol=float(limit_tol), eta=float(eta), zeta=float(zeta), max_slip=float(max_slip),
+                     pose_tol_position=float(pose_tol_position), pose_tol_rotation=float(pose_tol_rotation),
                      contact_consistency_tol=float(contact_consistency_tol), mu=float(mu),
                      self_clearance=None if self_clearance is None else float(self_clearance),
                      max_normal_force=float(max_normal_force))

@@ -272,10 +272,27 @@ def test_a_forged_converged_claim_is_rejected_whatever_the_plan_says(forged_plan
     error = float(np.max(plan.steps[-1].contact_error))
     assert error > 0.02  # one iteration leaves the contacts centimetres from the goal
     report = verify(plan, problem.hand, problem.obj)
-    assert [(v.step, v.check, v.amount, v.limit) for v in report.violations] == [
-        (len(plan.steps) - 1, "converged_claim", pytest.approx(error, abs=1e-12), 0.006)]
+    rows = [(v.step, v.check, v.who, v.amount, v.limit) for v in report.violations]
+    assert (len(plan.steps) - 1, "converged_claim", "", pytest.approx(error, abs=1e-12), 0.006) in rows
     assert report.metrics["plan_options"]["zeta"] == 1.0 and report.metrics["tolerances"]["zeta"] == 0.006
-    assert verify(plan, problem.hand, problem.obj, zeta=error + 1e-3).ok  # the caller may loosen it
+    dp, dr = _pose_error_by_scipy(plan)
+    assert dp > 2e-3 and dr > np.radians(2.0)  # one iteration: the object far from the desired pose too
+    assert (len(plan.steps) - 1, "converged_claim", "object", pytest.approx(dp, abs=1e-9), 2e-3) in rows
+    assert (len(plan.steps) - 1, "converged_claim", "object", pytest.approx(dr, abs=1e-6),
+            pytest.approx(np.radians(2.0))) in rows
+    assert len(rows) == 3
+    loose = {"zeta": error + 1e-3, "pose_tol_position": dp + 1e-3, "pose_tol_rotation": dr + 1e-3}
+    assert verify(plan, problem.hand, problem.obj, **loose).ok  # the caller may loosen them
+
+
+def _pose_error_by_scipy(plan) -> tuple[float, float]:
+    """(m, rad) of the last step's object pose from the desired one: translation distance and the
+    rotation vector's norm of R_lastᵀ R_goal (scipy)."""
+    from scipy.spatial.transform import Rotation
+
+    T, G = plan.steps[-1].T_palm_object, plan.goal_T_palm_object
+    angle = np.linalg.norm(Rotation.from_matrix(T[:3, :3].T @ G[:3, :3]).as_rotvec())
+    return float(np.linalg.norm(T[:3, 3] - G[:3, 3])), float(angle)
 
 
 def test_cli_verify_judges_with_its_own_zeta(forged_plan, capsys):
@@ -285,6 +302,9 @@ def test_cli_verify_judges_with_its_own_zeta(forged_plan, capsys):
     error_mm = float(np.max(plan.steps[-1].contact_error)) * 1e3
     assert main(["verify", str(path)]) == 1
     assert "converged_claim" in capsys.readouterr().out
-    assert main(["verify", str(path), "--zeta", f"{error_mm + 1:.3f}"]) == 0
-    assert main(["verify", str(path), "--zeta", f"{error_mm - 1:.3f}"]) == 1
+    dp, dr = _pose_error_by_scipy(plan)
+    pose = ["--pose-tol-position", f"{dp * 1e3 + 1:.3f}", "--pose-tol-rotation", f"{np.degrees(dr) + 1:.3f}"]
+    assert main(["verify", str(path), "--zeta", f"{error_mm + 1:.3f}", *pose]) == 0
+    assert main(["verify", str(path), "--zeta", f"{error_mm + 1:.3f}"]) == 1  # the pose rows remain
+    assert main(["verify", str(path), "--zeta", f"{error_mm - 1:.3f}", *pose]) == 1
     assert main(["verify", str(path), "--zeta", "-1"]) == 2
