@@ -76,7 +76,8 @@ class Staging:
     """(m, 3) tip-centre targets, object frame, m: the other fingers' support positions; the pinned
     finger's row is its goal."""
     margin: float
-    """The least force-closure margin ε along the pinned finger's path with the others at `tips`."""
+    """The least certificate margin along the pinned finger's path with the others at `tips` (ε for
+    force closure, the weight scale for gravity)."""
     iteration: int
     """The planner iteration the staging was found in."""
     last_error: float = np.inf
@@ -104,19 +105,22 @@ def _surface(run: _Run, tips: NDArray) -> tuple[NDArray, NDArray, NDArray]:
 
 
 def path_margin(run: _Run, contacts: NDArray, normals: NDArray, finger: int, path_c: NDArray,
-                path_n: NDArray, floor: float = -np.inf) -> float:
-    """The least certificate margin of the grasp (`contacts`, `normals` (m, 3), object frame) while
-    finger `finger` (its row) slides along the surface points `path_c`, `path_n` (k, 3), frictionless;
-    stops early below `floor`."""
-    m = len(contacts)
+                path_n: NDArray, strict: bool = False) -> float | None:
+    """The least certificate margin (ε for force closure, the weight scale for gravity) of the grasp
+    (`contacts`, `normals` (m, 3), object frame) while finger `finger` (its row) slides along the surface
+    points `path_c`, `path_n` (k, 3), frictionless; None as soon as a sample is not certified
+    (`Holding.certified`; `strict`: a force-closure ε of at least twice `min_margin`)."""
+    m, holding = len(contacts), run.holding
     slide = np.arange(m) == finger
+    floor = 2.0 * holding.options.min_margin if strict and holding.kind == "force_closure" else -np.inf
     worst = np.inf
     for c_k, n_k in zip(path_c, path_n, strict=True):
         c, n = contacts.copy(), normals.copy()
         c[finger], n[finger] = c_k, n_k
-        worst = min(worst, run.holding.hypothetical(c, n, run.T_palm_object, np.ones(m, bool), slide).margin)
-        if worst < floor:
-            break
+        cert = holding.hypothetical(c, n, run.T_palm_object, np.ones(m, bool), slide)
+        if not holding.certified(cert) or cert.margin < floor:
+            return None
+        worst = min(worst, float(cert.margin))
     return float(worst)
 
 
@@ -131,8 +135,7 @@ def pinned_finger(run: _Run) -> str | None:
         if err[r] <= run.options.zeta or holding.certified(holding.lift(run.q, T, f)):
             continue
         path_c, path_n = _path(run, contacts, normals, r)
-        if path_margin(run, contacts, normals, r, path_c, path_n, holding.options.min_margin) < \
-                holding.options.min_margin:
+        if path_margin(run, contacts, normals, r, path_c, path_n) is None:
             pinned.append((err[r], f))
     return max(pinned)[1] if pinned else None
 
@@ -165,7 +168,6 @@ def find_staging(run: _Run, finger: str, samples: int = 600, sigma: tuple[float,
     cand = (1 - lam) * tips_now + lam * run.goal_tips + spread * rng.normal(0.0, 1.0, (samples, m, 3))
     moves = rng.random((samples, m)) < 0.6
     moves[:, i] = False
-    floor = 2.0 * holding.options.min_margin
     found = []
     for k in range(samples):
         moved = np.flatnonzero(moves[k])
@@ -176,8 +178,8 @@ def find_staging(run: _Run, finger: str, samples: int = 600, sigma: tuple[float,
             continue
         c, n = contacts.copy(), normals.copy()
         c[moved], n[moved] = c_k, n_k
-        worst = path_margin(run, c, n, i, path_c, path_n, floor)
-        if worst >= floor and _entry_order(run, contacts, normals, c, n, moved):
+        worst = path_margin(run, c, n, i, path_c, path_n, strict=True)
+        if worst is not None and _entry_order(run, contacts, normals, c, n, moved):
             t = tips_now.copy()
             t[moved], t[i] = tips_k, run.goal_tips[i]
             found.append((t, c, n, worst))
