@@ -322,7 +322,9 @@ def _clear_lift(ctx: _Context, q0: NDArray, finger: str, n_palm: NDArray) -> tup
     """`_lift` by `lift_height`, else lower (3/5, 2/5 of it), else leaning 25°, 40° away from the closest
     other finger (full, 3/5, 2/5 height), when the lift brings the finger closer to another than
     `self_clearance` (and than at q0); if every one does, the one that keeps it farthest from the others
-    (a thumb touch-down on bottle_regrasp cleared the palm by 0.33 mm only leaning 40° at 2/5 height)."""
+    among those whose tip rises at least β along n_palm (a thumb touch-down on bottle_regrasp cleared the
+    palm by 0.33 mm only leaning 40° at 2/5 height; a middle lift-off held at its joint limits must not
+    trade its rise for clearance from the others)."""
     o = ctx.options
     floor = min(o.self_clearance or 0.0, float(ctx.self_distance(q0[None], finger)[0])) - 1e-9
     best: tuple[tuple, NDArray[np.float64], str] | None = None
@@ -336,11 +338,14 @@ def _clear_lift(ctx: _Context, q0: NDArray, finger: str, n_palm: NDArray) -> tup
         u = v - (v @ n_palm) * n_palm
         leans = [n_palm + math.tan(math.radians(deg)) * u / max(np.linalg.norm(u), 1e-12) for deg in (25, 40)]
         tries += [(d / np.linalg.norm(d), f) for d in leans for f in (1.0, 0.6, 0.4)]
+    r_tip = ctx.hand.fingers.index(finger)
     for direction, fraction in tries:
         knots, why = _lift(ctx, q0, finger, direction, fraction * o.lift_height)
         gap = float(np.min(ctx.self_distance(knots, finger)))
-        key = (gap >= floor, not why, gap)  # clear of the others first, then within the lean limit
-        if key[0] and key[1]:
+        rise = float((ctx.hand.tip_positions(knots[-1])[r_tip] - ctx.hand.tip_positions(q0)[r_tip]) @ n_palm)
+        # off the surface by the transit's β first, clear of the others, then within the lean limit
+        key = (rise >= o.beta, gap >= floor, not why, gap)
+        if all(key[:3]):
             return knots, why
         best = best if best is not None and best[0] >= key else (key, knots, why)
     assert best is not None

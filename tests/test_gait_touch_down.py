@@ -45,3 +45,24 @@ def test_the_thumb_touch_down_stays_clear_of_the_palm_at_verifys_samples(thumb_g
     palm = [k for k, (a, b) in enumerate(hand.self_collision_pairs())
             if hand.spheres[a].finger is None or hand.spheres[b].finger is None]
     assert down.any() and float(np.min(gaps[down][:, palm])) >= 1e-4
+
+
+BOTTLE_MIDDLE = Path(__file__).resolve().parent / "data" / "bottle_middle_lift_at_limits.yaml"
+"""Steps 4 -> 5 of bottle_regrasp's sd plan by the certified planner (a0822ef): a middle gait whose
+lift-off, the finger held at two joint limits, reaches no candidate height; the 40° lean at 2/5 height
+keeps it farthest from the other fingers but drives the tip 0.70 mm into the bottle."""
+
+
+def test_a_lift_off_that_reaches_no_height_still_rises_off_the_surface():
+    problem = RegraspProblem.load(BOTTLE_MIDDLE)
+    hand, obj = problem.hand, problem.obj
+    steps = [PlanStep(kind=kind, finger=finger, q=g.q, T_palm_object=g.T_palm_object,
+                      contacts_object=g.contacts_object, contact_error=np.zeros(len(g.contacts_object)),
+                      solver_status="", solve_time=0.0)
+             for kind, finger, g in (("initial", None, problem.grasp0),
+                                     ("gait", "middle", problem.grasp_goal))]
+    path = plan_trajectories(steps, hand, obj)[1]
+    assert "lift-off" in path.detail  # the limits keep every lift short of its height
+    assert path.metrics["lift_height"] >= 1e-3  # but the tip rises β off the bottle
+    assert path.metrics["min_transit_clearance"] >= 1e-3
+    assert path.metrics["min_tip_clearance"] >= -5e-4
