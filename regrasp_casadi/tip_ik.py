@@ -6,7 +6,14 @@ posture, joints that a step would push through a limit frozen at it, an optional
 directions (e.g. "rise along the normal first"). The trajectories (`regrasp_casadi.trajectory`) solve
 their lift-off and reposing knots with it.
 
+`tip_object_ik` solves a reposing knot whose tips `tip_ik` cannot reach (a finger held at two joint
+limits has fewer than three free joints): the object's pose becomes an unknown too, so the object
+follows the hand, and the tips reach their places on the object exactly with the smallest change of
+the pose (the joints and the pose pulled towards their references in the null space).
+
     >>> q, e = tip_ik(hand, q0, ["index"], p_palm_target[None], hand.finger_joints["index"], q0)
+    >>> q, T, e = tip_object_ik(hand, q, T_ref, hand.fingers, p_object_tips, joints, q_ref=q_ref,
+    ...               T_ref=T_ref)
 """
 
 from __future__ import annotations
@@ -17,10 +24,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.transforms import exp_so3, log_SO3
+
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
 
-__all__ = ["tip_ik", "joints_at_limits", "IK_CONVERGED"]
+__all__ = ["tip_ik", "tip_object_ik", "joints_at_limits", "IK_CONVERGED"]
 
 IK_CONVERGED = 1e-7
 """`tip_ik` iterates until every (weighted) tip error is below this, m (or until it stops making
@@ -28,6 +37,18 @@ progress)."""
 
 MAX_STEP = 0.2
 """Largest joint change of one iteration, rad."""
+
+OBJECT_STEP = 0.01
+"""`tip_object_ik`: the object's translation per unit of its unknowns, m (0.01: a millimetre of object
+motion costs as much as 0.1 rad of a joint, which moves a tip about 5 mm: the joints move first)."""
+
+JOINT_PULL = 0.01
+"""`tip_object_ik`: weight of the joints' pull towards q_ref against the pose's towards T_ref (in the
+scaled unknowns): small, so that the object does not move to bring the joints closer to q_ref, only
+where the tips need it (knots either side of where the joints alone stop reaching stay close)."""
+
+OBJECT_LEVER = 0.05
+"""`tip_object_ik`: a radian of object rotation counts like this much translation, m."""
 
 
 def _dls_step(J: NDArray, e: NDArray, dq_null: NDArray, at_lower: NDArray, at_upper: NDArray,
@@ -100,6 +121,77 @@ def tip_ik(hand: Hand, q_start: NDArray, fingers: Sequence[str], p_palm_targets:
         if stalled:
             break
     return q, e
+
+
+def tip_object_ik(hand: Hand, q_start: NDArray, T_start: NDArray, fingers: Sequence[str],
+                  p_object_targets: NDArray, joints: NDArray, *, q_ref: NDArray, T_ref: NDArray,
+                  damping: float = 1e-4, max_iters: int = 40
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Joint angles and object pose whose tip centres of `fingers` are at `p_object_targets` on the object.
+
+    Damped least squares on the joints and a twist (v, ω) of the object, palm frame (the object's
+    points p move by v + ω × (p − t), t its origin), scaled by `OBJECT_STEP` and `OBJECT_LEVER`;
+    the null space pulls the pose towards T_ref and, `JOINT_PULL` times as strongly, the joints
+    towards q_ref.
+
+    Args:
+        hand: the hand (`tip_positions`, `tip_jacobian`, joint limits).
+        q_start: (n,) first iterate, rad (clipped into the limits).
+        T_start: (4, 4) first iterate of the object pose in the palm frame (m).
+        fingers: the fingers whose tips are placed.
+        p_object_targets: (len(fingers), 3) tip-sphere centres to reach, object frame, m.
+        joints: indices into q of the joints that may move.
+        q_ref, T_ref: (n,) rad and (4, 4): the posture and pose the null space is pulled towards.
+        damping, max_iters: as in `tip_ik`.
+
+    Returns:
+        q (n,) within the limits, the object pose T (4, 4) in the palm frame, and the remaining tip
+        errors (len(fingers), 3), palm frame, m.
+    """
+    rows = [hand.fingers.index(f) for f in fingers]
+    lo, hi = hand.q_lower[joints], hand.q_upper[joints]
+    c, c_rot = OBJECT_STEP, OBJECT_STEP / OBJECT_LEVER
+    P = np.asarray(p_object_targets, dtype=float)
+    q, T = np.clip(q_start, hand.q_lower, hand.q_upper), np.array(T_start, dtype=float)
+
+    def error(q: NDArray, T: NDArray) -> NDArray:
+        return P @ T[:3, :3].T + T[:3, 3] - hand.tip_positions(q)[rows]
+
+    e = error(q, T)
+    err = float(np.abs(e).max())
+    free_obj = np.zeros(6, dtype=bool)
+    for _ in range(max_iters):
+        if err <= IK_CONVERGED:
+            break
+        r = P @ T[:3, :3].T  # targets relative to the object's origin, palm frame
+        J_obj = np.concatenate([np.hstack([-c * np.eye(3), c_rot * _skew(ri)]) for ri in r])
+        J = np.hstack([np.concatenate([hand.tip_jacobian(q, f)[:, joints] for f in fingers]), J_obj])
+        qj = q[joints]
+        pull = np.concatenate([JOINT_PULL * (q_ref[joints] - qj), (T_ref[:3, 3] - T[:3, 3]) / c,
+                               log_SO3(T_ref[:3, :3] @ T[:3, :3].T) / c_rot])
+        dx = _dls_step(J, e.ravel(), pull, np.concatenate([qj <= lo + 1e-12, free_obj]),
+                       np.concatenate([qj >= hi - 1e-12, free_obj]), damping)
+        largest = float(np.abs(dx).max())
+        if largest > MAX_STEP:
+            dx *= MAX_STEP / largest
+        q_new, T_new = q.copy(), T.copy()
+        q_new[joints] = np.minimum(np.maximum(qj + dx[: len(joints)], lo), hi)
+        T_new[:3, 3] += c * dx[-6:-3]
+        T_new[:3, :3] = exp_so3(c_rot * dx[-3:]) @ T[:3, :3]
+        e_new = error(q_new, T_new)
+        err_new = float(np.abs(e_new).max())
+        if err_new >= err:
+            break
+        stalled = err_new > 0.8 * err
+        q, T, e, err = q_new, T_new, e_new, err_new
+        if stalled:
+            break
+    return q, T, e
+
+
+def _skew(v: NDArray) -> NDArray[np.float64]:
+    """(3, 3) matrix of the cross product v × ·."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def joints_at_limits(hand: Hand, q: NDArray, joints: NDArray, tol: float = 1e-9) -> list[str]:

@@ -12,11 +12,9 @@ distance for the checks.
   touch-down along the new contact's normal. Only r's joints change. The lift-off and touch-down come
   from IK on the tip (the touch-down is the lift from the new contact, reversed, so it ends exactly at
   the step).
-* **Reposing** (repose and final steps; the object moves with the hand): the object pose is interpolated
-  from step A to step B (translation linear, rotation geodesic: `transforms.interpolate_pose`), the tip
-  centres held in the object frame (interpolated linearly from A's to B's, which differ by OPT2's slip)
-  and mapped by that pose, and the joints come from IK for all fingers, warm started from the
-  neighbouring knots and pulled towards the joint-space interpolation in the null space.
+* **Reposing** (repose and final steps; the object moves with the hand): `repose_trajectory.repose_path`
+  (the object pose interpolated from step A to step B, the tip centres held in the object frame, IK for
+  all fingers; where the joints alone cannot follow, the object follows the hand).
 * **Knots** are placed so that no point of the hand moves more than `max_point_step` between two knots:
   a sphere of radius ρ whose centre moves by Δc on a chain whose joints move by Δq moves no point more
   than ‖Δc‖ + ρ·Σ|Δq_j|. Segments over the bound are bisected with IK knots until joint-space
@@ -26,12 +24,11 @@ distance for the checks.
   distance between two knots is within half of it of one of theirs): joint limits, the moving finger's
   spheres ≥ β from the object and ≥ `self_clearance` from the other fingers and the palm in a transit
   (`Hand.self_collision_pairs`), not in the object nor in another finger during lift-off and
-  touch-down (a lift is lowered to 3/5 or 2/5, or leans 25°/40° away from the closest other finger,
-  when that keeps it clear of the others); in a reposing the tips within `surface_tol` of the
-  surface, the contacts within `max_slip` of step A's, every non-tip sphere (palm included) outside
-  the object, no two fingers overlapping. A failure
-  (an IK that cannot reach a knot within the limits, a check) is reported in the path (`ok` False and
-  `detail`), never hidden.
+  touch-down (a lift is lowered to 3/5 or 2/5, or leans 25°/40° away from the closest other finger at
+  any of the three heights, when that keeps it clear of the others); in a reposing the tips within
+  `surface_tol` of the surface, the contacts within `max_slip` of step A's, every non-tip sphere (palm
+  included) outside the object, no two fingers overlapping. A failure (an IK that cannot reach a knot
+  within the limits, a check) is reported in the path (`ok` False and `detail`), never hidden.
 
     >>> plan = attach_trajectories(plan, hand, obj)          # what plan_regrasp does at the end
     >>> t, q, T_palm_object = plan.sample(0.01)
@@ -52,7 +49,7 @@ from numpy.typing import NDArray
 from regrasp_casadi.constants import BETA, SELF_CLEARANCE
 from regrasp_casadi.motion import DEFAULT_MAX_JOINT_SPEED, DEFAULT_MIN_STEP_DURATION, StepPath, time_stamps
 from regrasp_casadi.tip_ik import joints_at_limits, tip_ik
-from regrasp_casadi.transforms import interpolate_pose, inv_T, transform_points
+from regrasp_casadi.transforms import inv_T, transform_points
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
@@ -68,9 +65,6 @@ _RISE_TOL = 0.1
 
 _SIDEWAYS_WEIGHT = 0.1
 """Weight of the sideways error of a lift-off against its rise along the normal (IK)."""
-
-_COARSE_SPACING = 0.016
-"""A reposing's first IK knots: one per this much motion of the hand's points, m (then bisection)."""
 
 _NEAR = 0.001
 """Margin beyond the threshold checked (β in a transit, 0 elsewhere) within which a clearance is exact,
@@ -326,8 +320,11 @@ def _contact_normal_palm(ctx: _Context, step: PlanStep, finger: str) -> NDArray[
 
 def _clear_lift(ctx: _Context, q0: NDArray, finger: str, n_palm: NDArray) -> tuple[NDArray[np.float64], str]:
     """`_lift` by `lift_height`, else lower (3/5, 2/5 of it), else leaning 25°, 40° away from the closest
-    other finger, when the lift brings the finger closer to another than `self_clearance` (and than at
-    q0); if every one does, the one that keeps it farthest from the others."""
+    other finger (full, 3/5, 2/5 height), when the lift brings the finger closer to another than
+    `self_clearance` (and than at q0); if every one does, the one that keeps it farthest from the others
+    among those whose tip rises at least β along n_palm (a thumb touch-down on bottle_regrasp cleared the
+    palm by 0.33 mm only leaning 40° at 2/5 height; a middle lift-off held at its joint limits must not
+    trade its rise for clearance from the others)."""
     o = ctx.options
     floor = min(o.self_clearance or 0.0, float(ctx.self_distance(q0[None], finger)[0])) - 1e-9
     best: tuple[tuple, NDArray[np.float64], str] | None = None
@@ -340,12 +337,15 @@ def _clear_lift(ctx: _Context, q0: NDArray, finger: str, n_palm: NDArray) -> tup
         v = (C[a] - C[b]) * (1.0 if ctx.sphere_finger[a] == finger else -1.0)
         u = v - (v @ n_palm) * n_palm
         leans = [n_palm + math.tan(math.radians(deg)) * u / max(np.linalg.norm(u), 1e-12) for deg in (25, 40)]
-        tries += [(d / np.linalg.norm(d), f) for d in leans for f in (1.0, 0.6)]
+        tries += [(d / np.linalg.norm(d), f) for d in leans for f in (1.0, 0.6, 0.4)]
+    r_tip = ctx.hand.fingers.index(finger)
     for direction, fraction in tries:
         knots, why = _lift(ctx, q0, finger, direction, fraction * o.lift_height)
         gap = float(np.min(ctx.self_distance(knots, finger)))
-        key = (gap >= floor, not why, gap)  # clear of the others first, then within the lean limit
-        if key[0] and key[1]:
+        rise = float((ctx.hand.tip_positions(knots[-1])[r_tip] - ctx.hand.tip_positions(q0)[r_tip]) @ n_palm)
+        # off the surface by the transit's β first, clear of the others, then within the lean limit
+        key = (rise >= o.beta, gap >= floor, not why, gap)
+        if all(key[:3]):
             return knots, why
         best = best if best is not None and best[0] >= key else (key, knots, why)
     assert best is not None
@@ -493,65 +493,6 @@ def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     return _timed(ctx, Q, np.repeat(T[None], len(Q), axis=0), phases, problems, metrics)
 
 
-# ------------------------------------------------------------------------------------------- reposing
-def _repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
-    """The path of reposing (or final) step b from step a: the object moves, the contacts stay.
-
-    Metrics (m): "max_surface_error" (|sd − tip radius| of the tips), "max_slip" (contacts from step a's),
-    "max_ik_error" (tips from their targets at the knots), "min_clearance" (every non-tip sphere, palm
-    included), "max_point_step".
-    """
-    hand, o = ctx.hand, ctx.options
-    q_a, q_b = np.asarray(a.q, dtype=float), np.asarray(b.q, dtype=float)
-    T_a, T_b = np.asarray(a.T_palm_object, dtype=float), np.asarray(b.T_palm_object, dtype=float)
-    tips_a = transform_points(inv_T(T_a), hand.tip_positions(q_a))
-    tips_b = transform_points(inv_T(T_b), hand.tip_positions(q_b))
-    fingers = list(hand.fingers)
-    ik_error = [0.0]  # the largest tip error of the IK knots, m
-
-    def pose(s: float) -> NDArray:
-        return T_a if s == 0.0 else T_b if s == 1.0 else interpolate_pose(T_a, T_b, s)
-
-    def curve(s: float, warm: NDArray | None) -> tuple[NDArray, str]:
-        if s in (0.0, 1.0):
-            return (q_a if s == 0.0 else q_b), ""
-        targets = transform_points(pose(s), (1.0 - s) * tips_a + s * tips_b)
-        q_lin = (1.0 - s) * q_a + s * q_b
-        q, e = _ik(ctx, q_lin if warm is None else warm, fingers, targets, ctx.finger_joints, q_lin)
-        err = float(np.max(np.linalg.norm(e, axis=1)))
-        ik_error[0] = max(ik_error[0], err)
-        if err <= o.ik_tol:
-            return q, ""
-        return q, f"a tip is {err * 1e3:.4f} mm from its target{_held_joints(ctx, q, ctx.finger_joints)}"
-
-    chord = float(ctx.segment_motion(np.stack([q_a, q_b]))[0])
-    s_knots, Q, why = _knots(ctx, curve, int(math.ceil(chord / _COARSE_SPACING)) + 1)
-    problems = [f"IK: {why}"] if why else []
-    Ts = np.stack([pose(float(s)) for s in s_knots])
-    tips = np.array([ctx.tip_index[f] for f in fingers])
-    p_object = _to_object(Ts, ctx.centers(Q)[:, tips])
-    closest, sd = ctx.obj.closest_points(p_object.reshape(-1, 3))
-    surface = np.abs(sd.reshape(len(Q), -1) - ctx.radii[tips][None])
-    slip = np.linalg.norm(closest.reshape(len(Q), -1, 3) - np.asarray(a.contacts_object)[None], axis=2)
-    others = np.flatnonzero(~ctx.is_tip)
-    clear = ctx.clearance(Q, Ts, others) if others.size else np.full((1, 1), math.inf)
-    metrics = {"max_surface_error": float(np.max(surface)), "max_slip": float(np.max(slip)),
-               "max_ik_error": ik_error[0], "min_clearance": float(np.min(clear)),
-               "min_self_clearance": float(np.min(ctx.self_distance(Q))),
-               "max_point_step": float(np.max(ctx.segment_motion(Q)))}
-    if metrics["max_surface_error"] > o.surface_tol:
-        problems.append(f"a tip is {metrics['max_surface_error'] * 1e3:.3f} mm off the surface "
-                        f"(> {o.surface_tol * 1e3:.2f} mm)")
-    if metrics["max_slip"] > o.max_slip:
-        problems.append(f"a contact slips {metrics['max_slip'] * 1e3:.3f} mm (> {o.max_slip * 1e3:.2f} mm)")
-    if metrics["min_clearance"] < 0.0:
-        problems.append(f"a non-tip sphere is {-metrics['min_clearance'] * 1e3:.3f} mm inside the object")
-    if metrics["min_self_clearance"] < 0.0:
-        problems.append(f"two fingers overlap by {-metrics['min_self_clearance'] * 1e3:.3f} mm")
-    problems += _limit_problems(ctx, Q)
-    return _timed(ctx, Q, Ts, ["repose"] * (len(Q) - 1), problems, metrics)
-
-
 # --------------------------------------------------------------------------------------------- public
 def plan_trajectories(plan_steps: Sequence[PlanStep], hand: Hand, obj: ObjectModel,
                       options: TrajectoryOptions | None = None) -> list[StepPath | None]:
@@ -566,14 +507,15 @@ def plan_trajectories(plan_steps: Sequence[PlanStep], hand: Hand, obj: ObjectMod
         hand, obj: the models the plan was made with.
         options: `TrajectoryOptions` (default: issue 15's values).
     """
-    from regrasp_casadi.slide_trajectory import slide_path  # it builds on this module's IK and knots
+    from regrasp_casadi.repose_trajectory import repose_path  # they build on this module's IK and knots
+    from regrasp_casadi.slide_trajectory import slide_path
     ctx = _Context(hand, obj, options or TrajectoryOptions())
     paths: list[StepPath | None] = [None]
     for a, b in zip(plan_steps[:-1], plan_steps[1:], strict=True):
         if b.kind in ("gait", "slide") and b.finger in hand.fingers:
             paths.append(_gait_path(ctx, a, b) if b.kind == "gait" else slide_path(ctx, a, b))
         elif b.kind in ("repose", "final"):
-            paths.append(_repose_path(ctx, a, b))
+            paths.append(repose_path(ctx, a, b))
         else:
             paths.append(None)
     flagged = [i for i, p in enumerate(paths) if p is not None and not p.ok]

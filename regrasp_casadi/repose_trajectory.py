@@ -1,0 +1,143 @@
+"""The path of a reposing (or final) step: the object moves with the hand, the contacts stay (issue 15).
+
+`trajectory.plan_trajectories` calls `repose_path` for every step of kind "repose" or "final", as it
+calls its gait paths and `slide_trajectory.slide_path` for the other kinds; the path is a
+`motion.StepPath` whose segments all have the phase "repose".
+
+Knots, s ∈ [0, 1]: the object pose T(s) is interpolated from step A's to step B's (translation linear,
+rotation geodesic: `transforms.interpolate_pose`); the tip centres are held in the object frame
+(interpolated linearly from A's to B's, which differ by OPT2's slip) and mapped by T(s); the joints come
+from the IK of `trajectory` for all fingers (damped least squares within the joint limits, warm started
+from the neighbouring knot, pulled towards the joint-space interpolation of A and B).
+
+**The object follows the hand.** Where that IK leaves a tip more than `FOLLOW_TOL` from its target (a
+finger held at two joint limits keeps only two free joints and cannot follow an arbitrary pose path:
+on cylinder_slide the middle tip sank 0.53–0.69 mm into the cylinder that way), the knot is solved again
+with the object's pose as an unknown too (`tip_ik.tip_object_ik`): the tips reach their places on the
+object exactly and the pose leaves T(s) as little as it must. Knots that `trajectory`'s refinement
+puts between two solved knots (equal joint-space parts) get the pose interpolated between theirs, which
+is what the interpolation rule (`motion.INTERPOLATION`) plays.
+
+Checks (the path's `ok` and `detail`), at every knot and at the midpoint of every segment (where the
+interpolation is farthest from the solved knots): the tips within `surface_tol` of the surface (exact
+distance − tip radius), the contacts within `max_slip` of step A's; at the knots: every non-tip sphere
+(palm included) outside the object, no two fingers overlapping, the joints within their limits.
+Metrics (m): "max_surface_error", "max_slip", "max_ik_error" (the tips from their targets at the
+knots), "max_pose_correction" (how far the object's following moved a tip's target, palm frame),
+"min_clearance", "min_self_clearance", "max_point_step".
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from regrasp_casadi.tip_ik import tip_object_ik
+from regrasp_casadi.transforms import interpolate_pose, inv_T, transform_points
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.motion import StepPath
+    from regrasp_casadi.plan import PlanStep
+    from regrasp_casadi.trajectory import _Context
+
+__all__ = ["repose_path", "FOLLOW_TOL"]
+
+COARSE_SPACING = 0.016
+"""A reposing's first IK knots: one per this much motion of the hand's points, m (then bisection)."""
+
+FOLLOW_TOL = 1e-5
+"""A knot whose tips the joints alone leave farther than this from their targets (m) is solved with the
+object's pose free (`tip_ik.tip_object_ik`)."""
+
+
+def repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
+    """The path of reposing (or final) step b from step a (see the module docstring)."""
+    from regrasp_casadi.trajectory import _held_joints, _ik, _knots, _limit_problems, _timed
+
+    hand, o = ctx.hand, ctx.options
+    q_a, q_b = np.asarray(a.q, dtype=float), np.asarray(b.q, dtype=float)
+    T_a, T_b = np.asarray(a.T_palm_object, dtype=float), np.asarray(b.T_palm_object, dtype=float)
+    tips_a = transform_points(inv_T(T_a), hand.tip_positions(q_a))
+    tips_b = transform_points(inv_T(T_b), hand.tip_positions(q_b))
+    fingers = list(hand.fingers)
+    ik_error = [0.0]  # the largest tip error of the IK knots, m
+    poses: dict[float, NDArray] = {0.0: T_a, 1.0: T_b}  # s -> the pose of every solved knot
+
+    def curve(s: float, warm: NDArray | None) -> tuple[NDArray, str]:
+        if s in (0.0, 1.0):
+            return (q_a if s == 0.0 else q_b), ""
+        T_s, held = interpolate_pose(T_a, T_b, s), (1.0 - s) * tips_a + s * tips_b
+        q_lin = (1.0 - s) * q_a + s * q_b
+        q, e = _ik(ctx, q_lin if warm is None else warm, fingers, transform_points(T_s, held),
+                   ctx.finger_joints, q_lin)
+        T = T_s
+        if float(np.max(np.linalg.norm(e, axis=1))) > FOLLOW_TOL:  # the object follows the hand
+            q, T, e = tip_object_ik(hand, q, T_s, fingers, held, ctx.finger_joints, q_ref=q_lin, T_ref=T_s,
+                                    damping=o.ik_damping, max_iters=o.ik_max_iters)
+        poses[s] = T
+        err = float(np.max(np.linalg.norm(e, axis=1)))
+        ik_error[0] = max(ik_error[0], err)
+        if err <= o.ik_tol:
+            return q, ""
+        return q, f"a tip is {err * 1e3:.4f} mm from its target{_held_joints(ctx, q, ctx.finger_joints)}"
+
+    chord = float(ctx.segment_motion(np.stack([q_a, q_b]))[0])
+    s_knots, Q, why = _knots(ctx, curve, int(math.ceil(chord / COARSE_SPACING)) + 1)
+    Ts = _knot_poses(s_knots, poses)
+    held = [(1.0 - s) * tips_a + s * tips_b for s in s_knots]
+    correction = max(float(np.max(np.linalg.norm(
+        transform_points(T, c) - transform_points(interpolate_pose(T_a, T_b, float(s)), c), axis=1)))
+        for s, T, c in zip(s_knots, Ts, held, strict=True))
+    metrics = {"max_ik_error": ik_error[0], "max_pose_correction": correction,
+               **_repose_metrics(ctx, Q, Ts, np.asarray(a.contacts_object, dtype=float))}
+    problems = [f"IK: {why}"] if why else []
+    if metrics["max_surface_error"] > o.surface_tol:
+        problems.append(f"a tip is {metrics['max_surface_error'] * 1e3:.3f} mm off the surface "
+                        f"(> {o.surface_tol * 1e3:.2f} mm)")
+    if metrics["max_slip"] > o.max_slip:
+        problems.append(f"a contact slips {metrics['max_slip'] * 1e3:.3f} mm (> {o.max_slip * 1e3:.2f} mm)")
+    if metrics["min_clearance"] < 0.0:
+        problems.append(f"a non-tip sphere is {-metrics['min_clearance'] * 1e3:.3f} mm inside the object")
+    if metrics["min_self_clearance"] < 0.0:
+        problems.append(f"two fingers overlap by {-metrics['min_self_clearance'] * 1e3:.3f} mm")
+    problems += _limit_problems(ctx, Q)
+    return _timed(ctx, Q, Ts, ["repose"] * (len(Q) - 1), problems, metrics)
+
+
+def _knot_poses(s_knots: NDArray, poses: dict[float, NDArray]) -> NDArray[np.float64]:
+    """(k, 4, 4) object pose at every knot: the solved knots' own, the others' interpolated (geodesic)
+    between the nearest solved knots before and after (their joints are equal parts between those)."""
+    solved = np.array(sorted(poses))
+    out = []
+    for s in np.asarray(s_knots, dtype=float):
+        if s in poses:
+            out.append(poses[float(s)])
+            continue
+        j = int(np.searchsorted(solved, s))
+        s0, s1 = solved[j - 1], solved[j]
+        out.append(interpolate_pose(poses[float(s0)], poses[float(s1)], (s - s0) / (s1 - s0)))
+    return np.stack(out)
+
+
+def _repose_metrics(ctx: _Context, Q: NDArray, Ts: NDArray, contacts_a: NDArray) -> dict[str, float]:
+    """"max_surface_error" and "max_slip" (from contacts_a (m, 3), object frame) of the tips at the knots
+    Q (k, n), Ts (k, 4, 4) and the segments' midpoints; "min_clearance" (non-tip spheres),
+    "min_self_clearance" and "max_point_step" at the knots; m."""
+    from regrasp_casadi.trajectory import _to_object
+
+    mid_T = [interpolate_pose(T0, T1, 0.5) for T0, T1 in zip(Ts[:-1], Ts[1:], strict=True)]
+    Q_all = np.concatenate([Q, 0.5 * (Q[:-1] + Q[1:])])
+    T_all = np.concatenate([Ts, np.reshape(mid_T, (-1, 4, 4))])
+    tips = np.array([ctx.tip_index[f] for f in ctx.hand.fingers])
+    p_object = _to_object(T_all, ctx.centers(Q_all)[:, tips])
+    closest, sd = ctx.obj.closest_points(p_object.reshape(-1, 3))
+    surface = np.abs(np.reshape(sd, (len(Q_all), -1)) - ctx.radii[tips][None])
+    slip = np.linalg.norm(np.reshape(closest, (len(Q_all), -1, 3)) - contacts_a[None], axis=2)
+    others = np.flatnonzero(~ctx.is_tip)
+    clear = ctx.clearance(Q, Ts, others) if others.size else np.full((1, 1), math.inf)
+    return {"max_surface_error": float(np.max(surface)), "max_slip": float(np.max(slip)),
+            "min_clearance": float(np.min(clear)), "min_self_clearance": float(np.min(ctx.self_distance(Q))),
+            "max_point_step": float(np.max(ctx.segment_motion(Q)))}
