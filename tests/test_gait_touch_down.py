@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from step_pairs import step_pair
 
 from regrasp_casadi.plan import PlanStep
 from regrasp_casadi.problem import RegraspProblem
@@ -24,13 +25,7 @@ the palm."""
 
 @pytest.fixture(scope="module")
 def thumb_gait():
-    problem = RegraspProblem.load(BOTTLE_THUMB)
-    steps = [PlanStep(kind=kind, finger=finger, q=g.q, T_palm_object=g.T_palm_object,
-                      contacts_object=g.contacts_object, contact_error=np.zeros(len(g.contacts_object)),
-                      solver_status="", solve_time=0.0)
-             for kind, finger, g in (("initial", None, problem.grasp0),
-                                     ("gait", "thumb", problem.grasp_goal))]
-    return problem.hand, problem.obj, steps
+    return step_pair(BOTTLE_THUMB, "gait", "thumb")
 
 
 def test_the_thumb_touch_down_stays_clear_of_the_palm_at_verifys_samples(thumb_gait):

@@ -9,10 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from step_pairs import step_pair
 
 from regrasp_casadi import repose_trajectory
-from regrasp_casadi.plan import PlanStep
-from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.tip_ik import joints_at_limits
 from regrasp_casadi.trajectory import plan_trajectories
 from regrasp_casadi.verify_motion import sample_plan_motion
@@ -27,12 +26,7 @@ HELD_TOL = 3e-4
 
 @pytest.fixture(scope="module")
 def cylinder_repose():
-    problem = RegraspProblem.load(CYLINDER_REPOSE)
-    steps = [PlanStep(kind=kind, finger=None, q=g.q, T_palm_object=g.T_palm_object,
-                      contacts_object=g.contacts_object, contact_error=np.zeros(len(g.contacts_object)),
-                      solver_status="", solve_time=0.0)
-             for kind, g in (("initial", problem.grasp0), ("repose", problem.grasp_goal))]
-    return problem.hand, problem.obj, steps
+    return step_pair(CYLINDER_REPOSE, "repose")
 
 
 def _held_surface_error(hand, obj, steps, path) -> float:
