@@ -17,34 +17,38 @@ load falls on each setting alike. Measures and records; asserts nothing.
     python benchmarks/stability.py --no-ycb --stabilities none force_closure --out /tmp/s.json
     python benchmarks/stability.py --gait-orders pattern search       # also the searched gait order
 
-Measured (results/stability.json; commit df46916, 2026-12-02T00:29 UTC, AMD EPYC, 2 cores shared with
-5 other jobs, 1-min load 12-19, so every time is inflated 3-6x over an idle run; the settings of one problem
-and method ran back to back, so both saw the same load). The run did not finish: 11 of the 50
-(pair, method) plans have both settings (banana_0, banana_1, mustard_0, pringles_0, soft-scrub_0, sugar-box_0; pair-major order, so pairs _0 first);
-a worker was OOM-killed once at 4.6 GB (banana_0 sd force_closure; cause not investigated).
+Measured (results/stability.json): commit 72dee95 (the staging last resort, the reposing paths in which the
+object follows the hand; the tree differed only by untracked result files), 2026-12-02 04:03-04:21 UTC, Intel
+Xeon, 2 cores, 2 worker processes, 1-min load 1.9-2.2 (two single plans ran beside it in its last minutes), 1,103 s wall for all 120 plans.
+`python benchmarks/stability.py --workers 2 --out benchmarks/results/stability.json`.
 
-Paper pairs, the 11 (pair, method) plans with both settings:
+The 25 regenerated YCB pairs × 2 methods (50 plans per setting); "traj." = median share the trajectories
+add to the plan time (timing["trajectories"] / the rest):
 
-| stability | gait order | method | plans | converged | verified | both | both, w/o self-coll. | median time (s) | median steps (converged) | gaits / slides / reposings per plan | certified steps |
-|---|---|---|---|---|---|---|---|---|---|---|---|
-| force_closure | pattern | both | 11 | 4 | 2 | 2 | 4 | 160.847 | 99.5 | 19.36 / 68.73 / 10.64 | 100.0 % |
-| none | pattern | both | 11 | 8 | 2 | 2 | 8 | 94.176 | 27.5 | 27.64 / 0.0 / 8.09 | 69.5 % |
+| stability | plans | converged | verified | both | median time (s) | median steps (converged) | gaits / slides / reposings per plan | certified steps | traj. |
+|---|---|---|---|---|---|---|---|---|---|
+| force_closure | 50 | 22 | 43 | 21 | 15.3 | 115 | 28.5 / 68.4 / 18.9 | 100.0 % | 9 % |
+| none | 50 | 48 | 45 | 43 | 5.5 | 36 | 26.0 / 0.0 / 7.6 | 53.4 % | 12 % |
 
-force_closure: 2/11 converged and verified (4/11 without verify's self-collision rows: 22 of
-the 25 pairs start in sphere self-collision, benchmarks/self_collision.py); none: 2/11 (8/11).
-Plan time force_closure / none, same problem and method: median of the ratios 1.801, ratio of the
-medians 1.708. Issue 14's targets: ≥ 90 % converged and verified — missed (18 %;
-36 % without the self-collision rows); median time ≤ 1.5× "none" — missed
-(1.708×). The cost is the slides: a lift that is not certified becomes slides of ≤ 2 mm, each an
-OPT1 solve, a certificate at both ends and a path.
+The shipped problems (10 plans per setting):
 
-Shipped problems, force_closure (bottle_regrasp from the stopped first run's log: stalled and verified, 147 s
-svd / 192 s sd, not in the JSON; "none" is benchmarks/regression.py --no-ycb --stability none: all 8
-converge and verify, 0 of 8 differ from the paper planner of main 5964f02):
+| stability | plans | converged | verified | both | median time (s) | median steps (converged) | gaits / slides / reposings per plan | certified steps | traj. |
+|---|---|---|---|---|---|---|---|---|---|
+| force_closure | 10 | 6 | 10 | 6 | 13.3 | 95 | 24.9 / 81.7 / 20.9 | 100.0 % | 8 % |
+| none | 10 | 10 | 9 | 9 | 3.9 | 30 | 20.9 / 0.0 / 6.0 | 52.2 % | 9 % |
 
-| stability | gait order | method | plans | converged | verified | both | both, w/o self-coll. | median time (s) | median steps (converged) | gaits / slides / reposings per plan | certified steps |
-|---|---|---|---|---|---|---|---|---|---|---|---|
-| force_closure | pattern | both | 6 | 4 | 6 | 4 | 4 | 58.909 | 67.0 | 14.83 / 57.5 / 10.0 | 100.0 % |
+Plan time force_closure / none, same problem and method: median of the ratios 2.77, ratio of the
+medians 2.84 (the stalled certified plans run their last-resort staging: 10 more iterations). Issue 14's
+targets: ≥ 90 % converged and verified with force_closure — missed (YCB 42 %, shipped 60 %); median time
+≤ 1.5× "none" — missed (2.8×). Every step of every force_closure plan is certified (verify's
+`unstable_gait`); the "none" plans' steps are 53 % certified. All 13 verify failures of the 120 plans are
+verify's motion rows between the steps (no static row fails): a reposing path whose IK knots let a non-tip
+link into the object (0.25-2.5 mm) or two fingers overlap (0.03-0.80 mm), one gait touch-down 2.45 mm
+into the object, one reposing contact slipping 1.02 mm; the paths flag them themselves (`StepPath.ok`),
+the planner does not yet refuse such a step.
+
+Earlier (commit df46916, load 12-19, 11 of the 50 pairs × methods, pairs before their regeneration):
+force_closure 2/11 converged and verified, none 2/11 (8/11 without the self-collision rows).
 """
 
 from __future__ import annotations
