@@ -34,11 +34,12 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["FinalMoves", "run_final_moves", "decide_status", "pose_distance"]
 
 FinalStop = Literal["reached", "small_gain", "no_gain", "rejected", "contact_drift", "uncertified",
-                    "time_budget", "not_run"]
+                    "unrealisable", "time_budget", "not_run"]
 """Why the final moves ended: the object is within `final_pose_tol`; the last move gained less than
 `final_min_gain` (accepted) or nothing (not accepted); OPT2's exact checks rejected the move; the move
 would take a contact farther than ζ from its goal (not accepted); the moved grasp would have no stability
-certificate (`planner._Run.uncertified`; not accepted); the time budget ran out; not run."""
+certificate (`planner._Run.uncertified`; not accepted); its path from the last step fails its checks
+(`planner._Run.unrealisable`; not accepted); the time budget ran out; not run."""
 
 
 class FinalMoveRun(Protocol):
@@ -64,6 +65,8 @@ class FinalMoveRun(Protocol):
     def grasp_certificate(self): ...
 
     def uncertified(self, q: NDArray, T_palm_object: NDArray) -> str: ...
+
+    def unrealisable(self, q: NDArray, T_palm_object: NDArray, kind: str = "repose") -> str: ...
 
     def largest_error(self) -> float: ...
 
@@ -189,6 +192,9 @@ def _judge(run: FinalMoveRun, res, distance: float, zeta: float) -> tuple[FinalS
     bad = run.uncertified(res.q, res.T_palm_object)
     if bad:
         return "uncertified", f"the next final move was rejected: {bad}"
+    bad = run.unrealisable(res.q, res.T_palm_object, "final")
+    if bad:
+        return "unrealisable", f"the next final move was rejected: {bad}"
     return None, ""
 
 

@@ -252,6 +252,9 @@ class _Run:
         """The support configuration the certified round is moving towards (`staging.Staging`), or None."""
         self.staging_failed: dict[str, int] = {}
         """Pinned fingers whose staging search found nothing → the iteration it was tried."""
+        self.motion = None if not options.trajectories else _trajectory_context(self.hand, self.obj, options)
+        """The trajectories' context (`trajectory._Context`) that judges a reposing's path before it is
+        accepted (`unrealisable`); None without trajectories."""
         self.gait = options.gait or gait_pattern(self.hand, step.contacts_object, self.goal_contacts)
         self.gait_nlps = {f: self.gait_nlp(f) for f in self.gait}
         self.svd_nlp = self.in_grasp_nlp("svd")  # SVD reposing, stall escape and final moves
@@ -324,6 +327,21 @@ class _Run:
             return f"a contact slips {np.max(slip) * 1e3:.2f} mm on the object"
         return ""
 
+    def unrealisable(self, q: NDArray, T_palm_object: NDArray, kind: str = "repose") -> str:
+        """Why the hand could not move the object from the last step to the grasp (q, T_palm_object) along
+        the reposing path `attach_trajectories` would give it ("" when it could, or without trajectories):
+        the path's own checks (`repose_trajectory.repose_path`: a link in the object, fingers touching, a
+        tip off the surface, a slip, a joint limit, a gap in the IK)."""
+        if self.motion is None:
+            return ""
+        from regrasp_casadi.repose_trajectory import repose_path
+
+        a = self.steps[-1]
+        b = replace(a, kind=kind, finger=None, q=np.asarray(q, float),
+                    T_palm_object=np.asarray(T_palm_object, float), path=None, certificate=None)
+        path = repose_path(self.motion, a, b)
+        return "" if path.ok else f"its path fails its checks ({path.detail})"
+
     def start_staging(self) -> bool:
         """Turn on the staging of pinned fingers (`staging`) when the plan has stalled; False when it is
         already on, stability is off or `HoldingOptions.staging` is off (the plan then stops)."""
@@ -391,7 +409,8 @@ class _Run:
         self.timing["opt2"] += res.solve_time
         self.solves["opt2"] += 1
         goal = self.T_palm_object_goal
-        bad = self.uncertified(res.q, res.T_palm_object) if res.success else ""
+        bad = (self.uncertified(res.q, res.T_palm_object) or self.unrealisable(res.q, res.T_palm_object)
+               ) if res.success else ""
         if res.success and escape and (pose_distance(res.T_palm_object, goal, self.obj)
                                        >= pose_distance(self.T_palm_object, goal, self.obj)):
             self.failures.append(f"reposing towards the desired pose at step {len(self.steps)} would not "
@@ -519,6 +538,15 @@ def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_star
         plan = attach_trajectories(plan, hand, obj, TrajectoryOptions(beta=gait.beta,
                                                                       self_clearance=gait.self_clearance))
     return plan
+
+
+def _trajectory_context(hand: Hand, obj, options: PlannerOptions):
+    """The trajectories' context of a run (`trajectory._Context`, the options `_make_plan` attaches the
+    paths with)."""
+    from regrasp_casadi.trajectory import _Context
+
+    gait = options.finger_gait
+    return _Context(hand, obj, TrajectoryOptions(beta=gait.beta, self_clearance=gait.self_clearance))
 
 
 def _stability_problem(options: PlannerOptions) -> str:

@@ -98,6 +98,9 @@ class _Run:
     def uncertified(self, q, T_palm_object):
         return ""  # no stability (the `stability="none"` run)
 
+    def unrealisable(self, q, T_palm_object, kind="repose"):
+        return ""  # no trajectories (`trajectories=False`)
+
     def largest_error(self):
         return 0.0
 
@@ -187,9 +190,10 @@ def test_a_planned_regrasp_moves_monotonically_and_converges_only_at_the_pose(bo
 def test_an_escape_reposing_is_accepted_only_towards_the_desired_pose(box_shift, fraction, accepted):
     from regrasp_casadi import planner
 
-    # stability "none": the planted result keeps q while the object moves, which no certificate accepts
-    run = planner._Run(box_shift.grasp0, box_shift.grasp_goal, PlannerOptions(stability="none"),
-                       planner._DEFAULT_CACHE)
+    # stability "none" and no trajectories: the planted result keeps q while the object moves, which
+    # neither a certificate nor the reposing path's check (`_Run.unrealisable`) accepts
+    run = planner._Run(box_shift.grasp0, box_shift.grasp_goal,
+                       PlannerOptions(stability="none", trajectories=False), planner._DEFAULT_CACHE)
     T_new = interpolate_pose(run.T_palm_object, run.T_palm_object_goal, fraction)
     run.svd_nlp = SimpleNamespace(solve=lambda *a, **k: _Result(q=run.q, T_palm_object=T_new))
     run.repose(escape=True)
