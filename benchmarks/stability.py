@@ -17,35 +17,39 @@ load falls on each setting alike. Measures and records; asserts nothing.
     python benchmarks/stability.py --no-ycb --stabilities none force_closure --out /tmp/s.json
     python benchmarks/stability.py --gait-orders pattern search       # also the searched gait order
 
-Measured (results/stability.json): commit 72dee95 (the staging last resort, the reposing paths in which the
-object follows the hand; the tree differed only by untracked result files), 2026-12-02 04:03-04:21 UTC, Intel
-Xeon, 2 cores, 2 worker processes, 1-min load 1.9-2.2 (two single plans ran beside it in its last minutes), 1,103 s wall for all 120 plans.
-`python benchmarks/stability.py --workers 2 --out benchmarks/results/stability.json`.
+Measured (results/stability.json): commit 49a590d (the staging last resort, reposing paths in which the
+object follows the hand, in-grasp moves refused when their path fails; the tree differed only by doc
+edits), 2026-12-02 04:33-04:52 UTC, Intel Xeon, 2 cores, 2 worker processes, 1-min load ≈ 2, 1,114 s
+wall for all 120 plans. `python benchmarks/stability.py --workers 2 --out benchmarks/results/stability.json`.
 
 The 25 regenerated YCB pairs × 2 methods (50 plans per setting); "traj." = median share the trajectories
 add to the plan time (timing["trajectories"] / the rest):
 
 | stability | plans | converged | verified | both | median time (s) | median steps (converged) | gaits / slides / reposings per plan | certified steps | traj. |
 |---|---|---|---|---|---|---|---|---|---|
-| force_closure | 50 | 22 | 43 | 21 | 15.3 | 115 | 28.5 / 68.4 / 18.9 | 100.0 % | 9 % |
-| none | 50 | 48 | 45 | 43 | 5.5 | 36 | 26.0 / 0.0 / 7.6 | 53.4 % | 12 % |
+| force_closure | 50 | 22 | 47 | 22 | 14.2 | 106 | 26.6 / 73.9 / 16.5 | 100.0 % | 9 % |
+| none | 50 | 45 | 50 | 45 | 6.0 | 35 | 25.8 / 0.0 / 7.5 | 52.7 % | 11 % |
 
 The shipped problems (10 plans per setting):
 
 | stability | plans | converged | verified | both | median time (s) | median steps (converged) | gaits / slides / reposings per plan | certified steps | traj. |
 |---|---|---|---|---|---|---|---|---|---|
-| force_closure | 10 | 6 | 10 | 6 | 13.3 | 95 | 24.9 / 81.7 / 20.9 | 100.0 % | 8 % |
-| none | 10 | 10 | 9 | 9 | 3.9 | 30 | 20.9 / 0.0 / 6.0 | 52.2 % | 9 % |
+| force_closure | 10 | 6 | 10 | 6 | 13.5 | 95 | 24.9 / 78.6 / 20.9 | 100.0 % | 8 % |
+| none | 10 | 9 | 10 | 9 | 4.1 | 27 | 20.5 / 0.0 / 5.6 | 50.9 % | 7 % |
 
-Plan time force_closure / none, same problem and method: median of the ratios 2.77, ratio of the
-medians 2.84 (the stalled certified plans run their last-resort staging: 10 more iterations). Issue 14's
-targets: ≥ 90 % converged and verified with force_closure — missed (YCB 42 %, shipped 60 %); median time
-≤ 1.5× "none" — missed (2.8×). Every step of every force_closure plan is certified (verify's
-`unstable_gait`); the "none" plans' steps are 53 % certified. All 13 verify failures of the 120 plans are
-verify's motion rows between the steps (no static row fails): a reposing path whose IK knots let a non-tip
-link into the object (0.25-2.5 mm) or two fingers overlap (0.03-0.80 mm), one gait touch-down 2.45 mm
-into the object, one reposing contact slipping 1.02 mm; the paths flag them themselves (`StepPath.ok`),
-the planner does not yet refuse such a step.
+Every converged plan of both settings verifies, the motion between the steps included; the 3 plans
+that fail verify (of 120) are stalled certified plans, each in a gait's path (a transit or lift-off with
+two fingers overlapping 0.05 / 2.0 mm, a touch-down 2.45 mm into the object). Plan time force_closure /
+none, same problem and method: median of the ratios 2.44, ratio of the medians 2.37 (the stalled
+certified plans run their last-resort staging: 10 more iterations). Issue 14's targets: ≥ 90 % converged
+and verified with force_closure — missed (YCB 44 %, shipped 60 %); median time ≤ 1.5× "none" — missed
+(2.4×). Every step of every force_closure plan is certified (verify's `unstable_gait`); the "none" plans'
+steps are 53 % certified.
+
+The run before the refusal of unrealisable in-grasp moves (commit 72dee95, same command, 04:03-04:21
+UTC, load 1.9-2.2): force_closure YCB 22 converged / 43 verified / 21 both, none YCB 48 / 45 / 43;
+13 of 120 plans failed verify, 12 of them in a reposing or final-move path (a non-tip link up to 2.5 mm
+into the object, fingers overlapping up to 0.8 mm, a 1.02 mm slip), 6 of them converged plans.
 
 Earlier (commit df46916, load 12-19, 11 of the 50 pairs × methods, pairs before their regeneration):
 force_closure 2/11 converged and verified, none 2/11 (8/11 without the self-collision rows).
