@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
-from regrasp_casadi.motion import interpolate_knots, time_stamps
+from regrasp_casadi.motion import interpolate_knots, step_knots
 from regrasp_casadi.problem import plan_models
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -117,17 +117,11 @@ def _smoothstep(u: float) -> float:
 
 
 def _step_motion(plan: Plan, i: int) -> tuple[NDArray, NDArray, NDArray, tuple[str | None, ...]]:
-    """Knots of step i's motion (i ≥ 1): t (k,) s from the step's start, q (k, n), T (k, 4, 4) and the
-    phase of each segment (None without a path). A step without a path moves linearly from step i−1,
-    timed as `Plan.sample` times it (`motion.time_stamps` with its defaults)."""
+    """Knots of step i's motion (i ≥ 1) as `Plan.sample` plays them (`motion.step_knots`): t (k,) s from
+    the step's start, q (k, n), T (k, 4, 4) and the phase of each segment (None without a path)."""
     step = plan.steps[i]
-    if step.path is not None:
-        p = step.path
-        return p.t, p.q, p.T_palm_object, tuple(p.phases)
-    prev = plan.steps[i - 1]
-    q = np.stack([np.asarray(prev.q, float), np.asarray(step.q, float)])
-    T = np.stack([np.asarray(prev.T_palm_object, float), np.asarray(step.T_palm_object, float)])
-    return time_stamps(q), q, T, (None,)
+    t, q, T = step_knots(plan.steps[i - 1], step)
+    return t, q, T, tuple(step.path.phases) if step.path is not None else (None,)
 
 
 def _replay_durations(plan_durations: NDArray, speed: float, min_step_seconds: float) -> NDArray:

@@ -33,6 +33,7 @@ __all__ = [
     "interpolate_knots",
     "sample_knots",
     "join_step_motions",
+    "step_knots",
 ]
 
 INTERPOLATION = "linear"
@@ -198,6 +199,22 @@ def sample_knots(t_knots: NDArray, q_knots: NDArray, T_knots: NDArray,
     return t, q, T
 
 
+def step_knots(prev: Any, step: Any, max_joint_speed: float = DEFAULT_MAX_JOINT_SPEED,
+               min_step_duration: float = DEFAULT_MIN_STEP_DURATION
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The knots of one step's motion from the step before (`prev`): its path's, or, without a path, a
+    straight line in joint space and object pose timed by `time_stamps` (rad/s, s).
+
+    Returns:
+        t (k,) s from the step's start, q (k, n) rad, T_palm_object (k, 4, 4).
+    """
+    if step.path is not None:
+        return step.path.t, step.path.q, step.path.T_palm_object
+    q = np.stack([np.asarray(prev.q, dtype=float), np.asarray(step.q, dtype=float)])
+    T = np.stack([np.asarray(prev.T_palm_object, dtype=float), np.asarray(step.T_palm_object, dtype=float)])
+    return time_stamps(q, max_joint_speed, min_step_duration), q, T
+
+
 def join_step_motions(steps: Sequence[Any], max_joint_speed: float = DEFAULT_MAX_JOINT_SPEED,
                       min_step_duration: float = DEFAULT_MIN_STEP_DURATION
                       ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], list[int]]:
@@ -217,15 +234,9 @@ def join_step_motions(steps: Sequence[Any], max_joint_speed: float = DEFAULT_MAX
         raise ValueError("an empty plan has no motion")
     t_knots, q_knots = [np.zeros(1)], [np.asarray(steps[0].q, dtype=float)[None]]
     T_knots = [np.asarray(steps[0].T_palm_object, dtype=float)[None]]
-    unpathed = []
+    unpathed = [i for i in range(1, len(steps)) if steps[i].path is None]
     for i in range(1, len(steps)):
-        prev, step = steps[i - 1], steps[i]
-        if step.path is not None:
-            t, q, T = step.path.t, step.path.q, step.path.T_palm_object
-        else:
-            unpathed.append(i)
-            q, T = np.stack([prev.q, step.q]), np.stack([prev.T_palm_object, step.T_palm_object])
-            t = time_stamps(q, max_joint_speed, min_step_duration)
+        t, q, T = step_knots(steps[i - 1], steps[i], max_joint_speed, min_step_duration)
         t_knots.append(t_knots[-1][-1] + t[1:])
         q_knots.append(q[1:])
         T_knots.append(T[1:])
