@@ -27,6 +27,7 @@ from regrasp_casadi.transforms import exp_so3, log_SO3, make_T
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.in_grasp import InGraspNLP
+    from regrasp_casadi.motion import StepPath
     from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.plan import PlanStep
     from regrasp_casadi.planner import PlannerOptions
@@ -60,13 +61,14 @@ class FinalMoveRun(Protocol):
     def tips_object(self) -> NDArray: ...
 
     def add_step(self, kind: str, finger: str | None, status: str, solve_time: float,
-                 certificate=None) -> PlanStep: ...
+                 certificate=None, path: StepPath | None = None) -> PlanStep: ...
 
     def grasp_certificate(self): ...
 
     def uncertified(self, q: NDArray, T_palm_object: NDArray) -> str: ...
 
-    def unrealisable(self, q: NDArray, T_palm_object: NDArray, kind: str = "repose") -> str: ...
+    def unrealisable(self, q: NDArray, T_palm_object: NDArray, kind: str = "repose"
+                     ) -> tuple[str, StepPath | None]: ...
 
     def largest_error(self) -> float: ...
 
@@ -113,14 +115,14 @@ def run_final_moves(run: FinalMoveRun, options: PlannerOptions) -> FinalMoves:
         res = run.svd_nlp.solve(run.q, run.T_palm_object, run.tips_object(), T_target=T_target)
         run.timing["opt2"] += res.solve_time
         run.solves["opt2"] += 1
-        stop, note = _judge(run, res, distances[-1], zeta)
+        stop, note, path = _judge(run, res, distances[-1], zeta)
         if stop is not None and stretch.shrink():
             continue  # retried with half the stretch
         if stop is not None:
             return FinalMoves(stop, len(distances) - 1, tuple(distances), note)
         stretch.update(run.T_palm_object, T_target, res.T_palm_object)
         run.q, run.T_palm_object = res.q, res.T_palm_object
-        run.add_step("final", None, res.status, res.solve_time, run.grasp_certificate())
+        run.add_step("final", None, res.status, res.solve_time, run.grasp_certificate(), path)
         distances.append(pose_distance(run.T_palm_object, T_goal, run.obj))
         if distances[-2] - distances[-1] < options.final_min_gain:
             return FinalMoves("small_gain", len(distances) - 1, tuple(distances))
@@ -173,29 +175,31 @@ class _Stretch:
         return True
 
 
-def _judge(run: FinalMoveRun, res, distance: float, zeta: float) -> tuple[FinalStop | None, str]:
-    """Whether OPT2's result `res` may be accepted: (None, "") if so, else why not."""
+def _judge(run: FinalMoveRun, res, distance: float, zeta: float
+           ) -> tuple[FinalStop | None, str, StepPath | None]:
+    """Whether OPT2's result `res` may be accepted: (None, "", its reposing path, None without
+    trajectories) if so, else (the stop, why not, None)."""
     if not res.success:
         return "rejected", (f"the final in-grasp move was rejected by the exact checks (slip "
                             f"{res.max_slip * 1e3:.2f} mm, clearance {res.min_clearance * 1e3:.2f} mm; "
-                            f"IPOPT: {res.status})")
+                            f"IPOPT: {res.status})"), None
     after = pose_distance(res.T_palm_object, run.T_palm_object_goal, run.obj)
     if after >= distance:
         return "no_gain", (f"the next final move would not bring the object closer ({after * 1e3:.2f} mm "
-                           f"≥ {distance * 1e3:.2f} mm)")
+                           f"≥ {distance * 1e3:.2f} mm)"), None
     tips = (run.hand.tip_positions(res.q) - res.T_palm_object[:3, 3]) @ res.T_palm_object[:3, :3]
     contacts, _ = run.obj.closest_points(tips)
     worst = float(np.max(np.linalg.norm(contacts - run.goal_contacts, axis=1)))
     if worst > zeta:
         return "contact_drift", (f"the next final move would take a contact {worst * 1e3:.2f} mm from its "
-                                 f"goal (> ζ)")
+                                 f"goal (> ζ)"), None
     bad = run.uncertified(res.q, res.T_palm_object)
     if bad:
-        return "uncertified", f"the next final move was rejected: {bad}"
-    bad = run.unrealisable(res.q, res.T_palm_object, "final")
+        return "uncertified", f"the next final move was rejected: {bad}", None
+    bad, path = run.unrealisable(res.q, res.T_palm_object, "final")
     if bad:
-        return "unrealisable", f"the next final move was rejected: {bad}"
-    return None, ""
+        return "unrealisable", f"the next final move was rejected: {bad}", None
+    return None, "", path
 
 
 def decide_status(run: FinalMoveRun, options: PlannerOptions, outcome: FinalMoves) -> tuple[str, str]:

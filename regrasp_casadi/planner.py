@@ -35,6 +35,7 @@ from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories
 if TYPE_CHECKING:
     from regrasp_casadi.grasp import Grasp
     from regrasp_casadi.hand import Hand
+    from regrasp_casadi.motion import StepPath
 
 __all__ = ["PlannerOptions", "plan_regrasp", "gait_pattern", "clear_nlp_cache", "NLPCache"]
 
@@ -253,8 +254,8 @@ class _Run:
         self.staging_failed: dict[str, int] = {}
         """Pinned fingers whose staging search found nothing → the iteration it was tried."""
         self.motion = None if not options.trajectories else _trajectory_context(self.hand, self.obj, options)
-        """The trajectories' context (`trajectory._Context`) that judges a reposing's path before it is
-        accepted (`unrealisable`); None without trajectories."""
+        """The trajectories' context (`trajectory._Context`) of the reposing paths computed before a move
+        is accepted (`unrealisable`); None without trajectories."""
         self.gait = options.gait or gait_pattern(self.hand, step.contacts_object, self.goal_contacts)
         self.gait_nlps = {f: self.gait_nlp(f) for f in self.gait}
         self.svd_nlp = self.in_grasp_nlp("svd")  # SVD reposing, stall escape and final moves
@@ -290,16 +291,17 @@ class _Run:
         return (self.hand.tip_positions(self.q) - self.T_palm_object[:3, 3]) @ self.T_palm_object[:3, :3]
 
     def add_step(self, kind: str, finger: str | None, status: str, solve_time: float,
-                 certificate: Certificate | None = None) -> PlanStep:
-        """Append the current grasp as a step of `kind`, with its contacts, contact errors and the
-        certificate of its holding set (None without stability)."""
+                 certificate: Certificate | None = None, path: StepPath | None = None) -> PlanStep:
+        """Append the current grasp as a step of `kind`, with its contacts, contact errors, the
+        certificate of its holding set (None without stability) and its path when already computed
+        (`unrealisable`; None: `attach_trajectories` computes it)."""
         contacts, _ = self.obj.closest_points(self.tips_object())
         error = np.linalg.norm(contacts - self.goal_contacts, axis=1)
         step = PlanStep(kind=kind, finger=finger, q=np.array(self.q, dtype=float),
                         T_palm_object=np.array(self.T_palm_object, dtype=float),
                         contacts_object=np.asarray(contacts, dtype=float), contact_error=error,
                         solver_status=status, solve_time=float(solve_time),
-                        certificate=None if certificate is None else certificate.to_dict())
+                        certificate=None if certificate is None else certificate.to_dict(), path=path)
         self.steps.append(step)
         return step
 
@@ -327,20 +329,22 @@ class _Run:
             return f"a contact slips {np.max(slip) * 1e3:.2f} mm on the object"
         return ""
 
-    def unrealisable(self, q: NDArray, T_palm_object: NDArray, kind: str = "repose") -> str:
-        """Why the hand could not move the object from the last step to the grasp (q, T_palm_object) along
-        the reposing path `attach_trajectories` would give it ("" when it could, or without trajectories):
-        the path's own checks (`repose_trajectory.repose_path`: a link in the object, fingers touching, a
-        tip off the surface, a slip, a joint limit, a gap in the IK)."""
+    def unrealisable(self, q: NDArray, T_palm_object: NDArray, kind: str = "repose"
+                     ) -> tuple[str, StepPath | None]:
+        """The reposing path (`repose_trajectory.repose_path`) from the last step to the grasp
+        (q, T_palm_object), the one `attach_trajectories` would give it, and why the hand could not move
+        the object along it: the path's own checks (a link in the object, fingers touching, a tip off the
+        surface, a slip, a joint limit, a gap in the IK); ("", None) without trajectories. The path of
+        an accepted move goes into its step (`add_step`), so it is computed once."""
         if self.motion is None:
-            return ""
+            return "", None
         from regrasp_casadi.repose_trajectory import repose_path
 
         a = self.steps[-1]
         b = replace(a, kind=kind, finger=None, q=np.asarray(q, float),
                     T_palm_object=np.asarray(T_palm_object, float), path=None, certificate=None)
         path = repose_path(self.motion, a, b)
-        return "" if path.ok else f"its path fails its checks ({path.detail})"
+        return ("" if path.ok else f"its path fails its checks ({path.detail})"), path
 
     def start_staging(self) -> bool:
         """Turn on the staging of pinned fingers (`staging`) when the plan has stalled; False when it is
@@ -409,15 +413,16 @@ class _Run:
         self.timing["opt2"] += res.solve_time
         self.solves["opt2"] += 1
         goal = self.T_palm_object_goal
-        bad = (self.uncertified(res.q, res.T_palm_object) or self.unrealisable(res.q, res.T_palm_object)
-               ) if res.success else ""
+        bad, path = (self.uncertified(res.q, res.T_palm_object) if res.success else ""), None
+        if res.success and not bad:
+            bad, path = self.unrealisable(res.q, res.T_palm_object)
         if res.success and escape and (pose_distance(res.T_palm_object, goal, self.obj)
                                        >= pose_distance(self.T_palm_object, goal, self.obj)):
             self.failures.append(f"reposing towards the desired pose at step {len(self.steps)} would not "
                                  f"bring the object closer; the object stays")
         elif res.success and not bad:
             self.q, self.T_palm_object = res.q, res.T_palm_object
-            self.add_step("repose", None, res.status, res.solve_time, self.grasp_certificate())
+            self.add_step("repose", None, res.status, res.solve_time, self.grasp_certificate(), path)
         elif bad:  # the object stays where it is
             self.failures.append(f"reposing at step {len(self.steps)} rejected: {bad}")
         else:  # the object stays where it is

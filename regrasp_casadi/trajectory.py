@@ -499,8 +499,9 @@ def plan_trajectories(plan_steps: Sequence[PlanStep], hand: Hand, obj: ObjectMod
     """The path of every step from the step before (None for the initial step and unknown kinds).
 
     Gait steps get a lift-off / transit / touch-down path, repose and final steps a reposing path (see
-    the module docstring), slide steps a path on the surface (`slide_trajectory.slide_path`). A path
-    whose checks fail has `ok` False and says why in `detail`.
+    the module docstring), slide steps a path on the surface (`slide_trajectory.slide_path`); a step
+    that carries its path already keeps it. A path whose checks fail has `ok` False and says why in
+    `detail`.
 
     Args:
         plan_steps: the steps of a plan, in order (`Plan.steps`).
@@ -512,7 +513,9 @@ def plan_trajectories(plan_steps: Sequence[PlanStep], hand: Hand, obj: ObjectMod
     ctx = _Context(hand, obj, options or TrajectoryOptions())
     paths: list[StepPath | None] = [None]
     for a, b in zip(plan_steps[:-1], plan_steps[1:], strict=True):
-        if b.kind in ("gait", "slide") and b.finger in hand.fingers:
+        if b.path is not None:  # computed already (the planner's in-grasp moves: `_Run.unrealisable`)
+            paths.append(b.path)
+        elif b.kind in ("gait", "slide") and b.finger in hand.fingers:
             paths.append(_gait_path(ctx, a, b) if b.kind == "gait" else slide_path(ctx, a, b))
         elif b.kind in ("repose", "final"):
             paths.append(repose_path(ctx, a, b))

@@ -89,7 +89,7 @@ class _Run:
     def tips_object(self):
         return transform_points(np.linalg.inv(self.T_palm_object), self.hand.tip_positions(self.q))
 
-    def add_step(self, kind, finger, status, solve_time, certificate=None):
+    def add_step(self, kind, finger, status, solve_time, certificate=None, path=None):
         self.steps.append(np.array(self.T_palm_object))
 
     def grasp_certificate(self):
@@ -99,7 +99,7 @@ class _Run:
         return ""  # no stability (the `stability="none"` run)
 
     def unrealisable(self, q, T_palm_object, kind="repose"):
-        return ""  # no trajectories (`trajectories=False`)
+        return "", None  # no trajectories (`trajectories=False`)
 
     def largest_error(self):
         return 0.0

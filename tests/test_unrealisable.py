@@ -49,12 +49,12 @@ def test_the_planner_refuses_that_move_and_not_a_clear_one(bottle_repose):
     hand, obj, steps = bottle_repose
     problem = RegraspProblem.load(BOTTLE_REPOSE)
     run = _Run(problem.grasp0, problem.grasp_goal, PlannerOptions(stability="none"), NLPCache(max_size=4))
-    why = run.unrealisable(steps[1].q, steps[1].T_palm_object)
-    assert "inside the object" in why
+    why, refused = run.unrealisable(steps[1].q, steps[1].T_palm_object)
+    assert "inside the object" in why and not refused.ok
     q_mid = 0.5 * (steps[0].q + steps[1].q)  # a tiny move whose path stays clear: accepted
     near = replace(steps[1], q=0.99 * steps[0].q + 0.01 * q_mid, T_palm_object=steps[0].T_palm_object)
     path = plan_trajectories([steps[0], near], hand, obj)[1]
-    assert (run.unrealisable(near.q, near.T_palm_object) == "") == path.ok
+    assert (run.unrealisable(near.q, near.T_palm_object)[0] == "") == path.ok
     off = _Run(problem.grasp0, problem.grasp_goal, PlannerOptions(stability="none", trajectories=False),
                NLPCache(max_size=4))
-    assert off.unrealisable(steps[1].q, steps[1].T_palm_object) == ""  # without trajectories: no check
+    assert off.unrealisable(steps[1].q, steps[1].T_palm_object) == ("", None)  # without trajectories
