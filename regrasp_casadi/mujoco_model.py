@@ -127,6 +127,14 @@ class SimOptions:
     min_handover_time: float = 0.1
     """Shortest load hand-over of a gait or slide step, s: such a step lasts at least
     min_handover_time / unload_fraction (a sudden change of the grip forces shakes the object)."""
+    feedback: str = "object_pose"
+    """Execution loop: "object_pose" closes it on the object's pose (an exact tracker; each holding tip
+    moves by the rigid correction that takes the simulated object onto the plan, integrated, see
+    `sim_feedback`); "none": open loop, the plan's joints and grip only."""
+    feedback_gain: float = 10.0
+    """Integral gain k_I of the object-pose feedback, 1/s."""
+    feedback_limit: float = 0.01
+    """Largest tip displacement of one finger's feedback offset, m."""
     settle_time: float = 0.5
     """Time spent at the plan's first step before the motion starts, s (squeeze and gravity ramp in
     over its first 60 %)."""
@@ -156,6 +164,8 @@ class SimOptions:
             raise ValueError(f"SimOptions.integrator: {self.integrator!r} not in {tuple(_INTEGRATORS)}")
         if self.cone not in _CONES:
             raise ValueError(f"SimOptions.cone: {self.cone!r} not in {tuple(_CONES)}")
+        if self.feedback not in ("none", "object_pose"):
+            raise ValueError(f"SimOptions.feedback: {self.feedback!r} not in ('none', 'object_pose')")
         if self.grip not in ("balanced", "squeeze"):
             raise ValueError(f"SimOptions.grip: {self.grip!r} not in ('balanced', 'squeeze')")
         if not 0.0 <= self.unload_fraction < 0.5:

@@ -44,7 +44,7 @@ from regrasp_casadi.transforms import interpolate_pose
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.plan import Plan
 
-__all__ = ["plan_motion", "step_durations", "step_end_times", "joint_commands", "grip_forces",
+__all__ = ["plan_motion", "step_durations", "step_end_times", "joint_commands", "Commands", "grip_forces",
            "StepContacts", "step_contacts", "CONTROL_DT"]
 
 CONTROL_DT = 5e-3
@@ -360,9 +360,11 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
             object surface (`_Grip.surface`; linearly interpolated between steps); None: no correction.
 
     Returns:
-        t (k,) s; q_cmd (k, n) rad; T_palm_object (k, 4, 4) planned object pose; q_grip0 (n,) the
-        targets that grip at step 0 (the settle's end); residual (s,) grip LP residual per step, N;
-        q_start (n,) the hand at step 0 with the surface correction only (the settle's start).
+        `Commands`: t (k,) s; q_cmd (k, n) rad; T_palm_object (k, 4, 4) planned object pose; q_grip0 (n,)
+        the targets that grip at step 0 (the settle's end); residual (s,) grip LP residual per step, N;
+        q_start (n,) the hand at step 0 with the surface correction only (the settle's start); holding
+        (k, m) each finger's holding weight in [0, 1] (0 while a gait lifts it, ramping over its load
+        hand-over), ``plan.fingers`` order.
     """
     timing = (opts.joint_velocity, opts.min_step_duration, opts.unload_fraction, opts.min_handover_time)
     t, q_lin, T = plan_motion(plan, CONTROL_DT, *timing)
@@ -370,9 +372,11 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
     segments, contacts, residual = _plan_segments(plan, hand, opts, mass, p_object_com)
     Q = np.array([st.q for st in plan.steps], dtype=float)
     q_cmd = np.empty_like(q_lin)
+    holding = np.empty((len(t), len(plan.fingers)))
     for k in range(len(t)):
         i, s = int(seg_idx[k]), float(phase[k])
         F, w, u, lift = _phase_weights(segments[i], s, opts)
+        holding[k] = w
         if segments[i].gait is None or plan.steps[i].path is not None or plan.steps[i].kind == "slide":
             q_cmd[k] = q_lin[k]  # a gait's path lifts the finger itself; a slide stays on the surface
             lift = None
@@ -389,7 +393,19 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
     zero = np.zeros_like(segments[0].F0)
     q_start = Q[0] + _grip_offset(hand, plan.fingers, opts, Q[0], R0, contacts[0].n_object,
                                   _Grip(zero, np.zeros(len(zero)), None, None, d0))
-    return t, q_cmd, T, q0, np.asarray(residual), q_start
+    return Commands(t, q_cmd, T, q0, np.asarray(residual), q_start, holding)
+
+
+class Commands(NamedTuple):
+    """The targets of `joint_commands` (see there)."""
+
+    t: NDArray
+    q_cmd: NDArray
+    T_palm_object: NDArray
+    q_grip0: NDArray
+    residual: NDArray
+    q_start: NDArray
+    holding: NDArray
 
 
 class _Grip(NamedTuple):

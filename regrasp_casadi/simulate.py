@@ -15,7 +15,9 @@ The model (`regrasp_casadi.mujoco_model`) is built from the project's own hand a
    joint change / `joint_velocity`)), the grip kept on every holding finger. The finger moved by a gait
    step hands its load over, follows its path (lift-off, transit, touch-down; without a path its tip is
    raised `lift_height` above the surface in mid-move) and lands again, while the others hold the
-   planned object pose.
+   planned object pose. The loop is closed on the object's pose (`SimOptions.feedback`, default
+   "object_pose", `sim_feedback`): the holding tips move by the rigid correction that takes the simulated
+   object onto the plan, integrated; "none" executes open loop.
 3. **Hold** the last step for `hold_time`.
 
 Deviation = distance (mm) between the simulated and planned positions of the object's centre of mass,
@@ -37,7 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.mujoco_model import SimModel, SimOptions, build_model
-from regrasp_casadi.sim_control import joint_commands, plan_motion, step_durations, step_end_times
+from regrasp_casadi.sim_control import CONTROL_DT, joint_commands, plan_motion, step_durations, step_end_times
+from regrasp_casadi.sim_feedback import ObjectPoseFeedback
 from regrasp_casadi.transforms import rotation_angle
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -253,11 +256,11 @@ def surface_distances(sim: SimModel, plan: Plan, hand, opts: SimOptions) -> NDAr
 
 
 def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
-    """Targets at every simulation step: (q_cmd (N, n), planned T (N, 4, 4), step-end sim indices,
-    settle length, grip residual per step, the hand's start q (n,))."""
+    """Targets at every simulation step: (q_cmd (N, n), planned T (N, 4, 4), holding weights (N, m),
+    step-end sim indices, settle length, grip residual per step, the hand's start q (n,))."""
     surface = surface_distances(sim, plan, hand, opts) if opts.surface_correction else None
-    t, q_cmd, T, q_grip0, residual, q0 = joint_commands(plan, hand, opts, sim.object_mass, sim.p_object_com,
-                                                        surface)
+    t, q_cmd, T, q_grip0, residual, q0, holding = joint_commands(plan, hand, opts, sim.object_mass,
+                                                                 sim.p_object_com, surface)
     dt = opts.timestep
     n_settle = int(round(opts.settle_time / dt))
     n_hold = int(round(opts.hold_time / dt))
@@ -269,16 +272,21 @@ def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     # velocity feed-forward: the servo force kp (ctrl − q) − kv q̇ − damping q̇ then has no lag on a ramp
     Q = Q + (opts.kv + opts.joint_damping) / opts.kp * np.gradient(Q, dt, axis=0)
     T_ref = np.concatenate([np.repeat(T[:1], n_settle, 0), T[idx], np.repeat(T[-1:], n_hold, 0)])
+    W = np.concatenate([np.repeat(holding[:1], n_settle, 0), holding[idx],
+                        np.repeat(holding[-1:], n_hold, 0)])
     t_end = step_end_times(plan, opts.joint_velocity, opts.min_step_duration, opts.unload_fraction,
                            opts.min_handover_time)
     ends = n_settle + np.rint(t_end / dt).astype(int)
-    return Q, T_ref, ends, n_settle, residual, q0
+    return Q, T_ref, W, ends, n_settle, residual, q0
 
 
 def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     """Step the simulation along the timeline; returns (step records, series, drop time or None)."""
     model, data = sim.model, mujoco.MjData(sim.model)
-    Q, T_ref, ends, n_settle, residual, q_start = _timeline(sim, plan, hand, opts)
+    Q, T_ref, W, ends, n_settle, residual, q_start = _timeline(sim, plan, hand, opts)
+    feedback = ObjectPoseFeedback(sim, plan.fingers, opts) if opts.feedback == "object_pose" else None
+    every_control = max(int(round(CONTROL_DT / opts.timestep)), 1)
+    offset = np.zeros(Q.shape[1])
     gravity = np.array(model.opt.gravity)
     _initial_state(sim, data, q_start, plan.steps[0].T_palm_object, opts)
     probe = _Probe(sim, hand, opts)
@@ -293,8 +301,11 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     for k in range(len(Q)):
         if k <= n_settle:
             model.opt.gravity[:] = gravity * min(1.0, k / max(0.6 * n_settle, 1))
-        data.ctrl[sim.actuator] = Q[k]
+        data.ctrl[sim.actuator] = Q[k] + offset
         mujoco.mj_step(model, data)
+        if feedback is not None and (k + 1) % every_control == 0:
+            offset = feedback.update(data, T_ref[k], probe.T_palm_object(data), W[k],
+                                     every_control * opts.timestep)
         if k + 1 in watch:
             recent.update(probe.contacts(model, data)[0])
         if k + 1 in step_at:

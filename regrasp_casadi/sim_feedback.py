@@ -1,0 +1,87 @@
+"""Object-pose feedback for executing a plan in simulation (`simulate` with ``SimOptions.feedback``).
+
+Executed open loop, a plan's object drifts: every reposing turns the fingertips on their contacts, a
+rigid tip sphere that turns on a contact whose point stays fixed on the object must slip or drag it, and
+the position servos are compliant; 1–5 mm and 1–7° per reposing add up over a plan of 50 steps until the
+holding grasps degrade (measured on the shipped problems: every step executed alone is followed, the
+whole plan is dropped). A robot closes the loop with an object tracker; here the tracker is exact (the
+simulated pose).
+
+Law (palm frame). With T_plan the planned and T_sim the simulated object pose at time t, the rigid
+correction E = T_plan · T_sim⁻¹ takes the simulated object onto the plan. Moving every holding tip
+centre p_m by the same rigid motion, δ_m = E p_m − p_m, would carry the object along with it (the grasp
+is rigid while the contacts stick). An integral law turns δ into joint offsets of the holding fingers:
+
+    Δq_m ← Δq_m + k_I · dt · w_m · J_m⁺ δ_m        (J_m: the tip's position Jacobian, damped pseudo-inverse)
+
+with w_m ∈ [0, 1] the finger's holding weight (0 while a gait lifts it, ramping during its load
+hand-over); a finger that does not hold lets its offset decay with the same rate. The offset's tip
+displacement J_m Δq_m is capped at `SimOptions.feedback_limit` (anti wind-up).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from regrasp_casadi.mujoco_model import SimModel, SimOptions
+
+__all__ = ["ObjectPoseFeedback", "rigid_tip_corrections"]
+
+_DAMPING = 1e-3  # m: damping of the least-squares solve J⁺ δ
+
+
+def rigid_tip_corrections(T_plan: NDArray, T_sim: NDArray, p_tips: NDArray) -> NDArray:
+    """(m, 3) displacements δ_m = E p_m − p_m, m, that move tip centres p_tips (m, 3) (palm frame, m) by
+    the rigid motion E = T_plan · T_sim⁻¹ (4, 4) taking the simulated object pose onto the planned one."""
+    E = np.asarray(T_plan, dtype=float) @ np.linalg.inv(np.asarray(T_sim, dtype=float))
+    p = np.asarray(p_tips, dtype=float)
+    return p @ E[:3, :3].T + E[:3, 3] - p
+
+
+class ObjectPoseFeedback:
+    """The integral object-pose feedback of one simulation run (see the module docstring).
+
+    Args:
+        sim: the compiled model (tip geoms, hand dof addresses); fingers: the plan's fingers, the order
+            of the holding weights; opts: `feedback_gain` k_I (1/s) and `feedback_limit` (m).
+    """
+
+    def __init__(self, sim: SimModel, fingers, opts: SimOptions) -> None:
+        self.sim, self.fingers = sim, tuple(fingers)
+        self.gain, self.limit = float(opts.feedback_gain), float(opts.feedback_limit)
+        self.R_palm_world = opts.R_world_palm.T
+        self.offset = np.zeros((len(self.fingers), len(sim.dof_hand)))
+        nv = sim.model.nv
+        self._jacp, self._jacr = np.zeros((3, nv)), np.zeros((3, nv))
+
+    def _tip(self, data: mujoco.MjData, finger: str) -> tuple[NDArray, NDArray]:
+        """(tip centre (3,) palm frame, m; position Jacobian (3, n) palm frame per hand joint)."""
+        g = self.sim.tip_geom[finger]
+        p_world = np.array(data.geom_xpos[g])
+        mujoco.mj_jac(self.sim.model, data, self._jacp, self._jacr, p_world, self.sim.model.geom_bodyid[g])
+        return self.R_palm_world @ p_world, self.R_palm_world @ self._jacp[:, self.sim.dof_hand]
+
+    def update(self, data: mujoco.MjData, T_plan: NDArray, T_sim: NDArray, holding: NDArray,
+               dt: float) -> NDArray:
+        """Advance the integral by dt (s) and return the joint offsets (n,) rad, `hand.joint_names` order.
+
+        Args:
+            data: the simulation state (after mj_step: positions and kinematics current);
+            T_plan, T_sim: (4, 4) planned and simulated object pose, palm frame;
+            holding: (m,) holding weight of each finger in [0, 1], ``fingers`` order.
+        """
+        for m, finger in enumerate(self.fingers):
+            w = float(holding[m])
+            p_tip, J = self._tip(data, finger)
+            if w <= 0.0:
+                self.offset[m] *= max(0.0, 1.0 - self.gain * dt)
+                continue
+            delta = rigid_tip_corrections(T_plan, T_sim, p_tip[None])[0]
+            step = J.T @ np.linalg.solve(J @ J.T + _DAMPING**2 * np.eye(3), delta)
+            self.offset[m] += self.gain * dt * w * step
+            reach = np.linalg.norm(J @ self.offset[m])
+            if reach > self.limit:
+                self.offset[m] *= self.limit / reach
+        return self.offset.sum(axis=0)
