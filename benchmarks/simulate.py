@@ -105,12 +105,16 @@ def problem_files(which: str, pairs: int, problem_dir: pathlib.Path) -> list[pat
     return sorted(p for p in problem_dir.glob("*.yaml") if int(p.stem.rsplit("_", 1)[1]) < pairs)
 
 
-def make_plan(problem, method: str, stability: str, gait_order: str | None):
-    """(plan, verified, plan wall s) of `plan_regrasp`, with `stability` when not "none"."""
+def make_plan(problem, method: str, stability: str, gait_order: str | None, gravity_palm=None,
+              mass: float | None = None):
+    """(plan, verified, plan wall s) of `plan_regrasp`, with `stability` when not "none" (for "gravity":
+    `gravity_palm` m/s² and the object's `mass` kg)."""
     from regrasp_casadi.planner import PlannerOptions, plan_regrasp
     from regrasp_casadi.verify import verify
 
     kw = {"method": method}
+    if stability == "gravity":
+        kw |= {"gravity_palm": gravity_palm, **({"object_mass": mass} if mass else {})}
     if gait_order:
         kw["gait_order"] = gait_order
     if "stability" in {f.name for f in dataclasses.fields(PlannerOptions)}:
@@ -247,48 +251,75 @@ def _args(argv):
     ap.add_argument("--pairs", type=int, default=5, help="paper pairs per object (the first N)")
     ap.add_argument("--methods", nargs="+", choices=("svd", "sd"), default=["svd", "sd"])
     ap.add_argument("--stability", nargs="+", default=["none"],
-                    help="PlannerOptions.stability settings to compare (e.g. none force_closure)")
+                    help="PlannerOptions.stability settings to compare (e.g. none force_closure gravity; "
+                         "gravity: one plan per condition, certified for that condition's gravity)")
     ap.add_argument("--conditions", nargs="+", choices=tuple(GRAVITY), default=list(GRAVITY))
     ap.add_argument("--grip", choices=("balanced", "squeeze"), default="balanced")
     ap.add_argument("--gait-order", default=None, help="planner gait_order (default: the planner's)")
     ap.add_argument("--per-step", action="store_true", help="every step alone, held % per step kind")
+    ap.add_argument("--feedback", choices=("object_pose", "none"), default="object_pose",
+                    help="SimOptions.feedback: closed loop on the object pose (default) or open loop")
+    ap.add_argument("--workers", type=int, default=1, help="plans planned and executed in parallel")
     ap.add_argument("--out", type=pathlib.Path, default=None, help="JSON file for the records")
     ap.add_argument("--plot", action="store_true", help="deviation over time, next to --out (.png)")
     return ap.parse_args(argv)
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = _args(argv)
-    from machine import machine_info
-
+def _job(job: tuple) -> tuple[list[dict], list[dict], list[dict]]:
+    """One (problem file, stability, method): plan, verify, execute. Returns (plan heads, whole-plan
+    records, per-step records). Stability "gravity": one plan per condition, certified for its gravity
+    (`stability="gravity"`, `gravity_palm` of the condition; "force_closure" for "off"), executed in it."""
     from regrasp_casadi.problem import RegraspProblem
 
-    info = machine_info(("mujoco", "numpy", "scipy", "casadi"))  # at the start: the commit that runs
+    path, stability, method, args = job
+    problem = RegraspProblem.load(path)
+    mass = getattr(problem, "object_mass", None) or object_mass(path)
+    opts_kw = {"grip": args.grip, "feedback": args.feedback, **({"object_mass": mass} if mass else {})}
+    runs = [(stability, args.conditions)]
+    if stability == "gravity":
+        runs = [("force_closure" if c == "off" else "gravity", [c]) for c in args.conditions]
+    heads, records, step_records = [], [], []
+    for kind, conditions in runs:
+        plan, verified, plan_s = make_plan(problem, method, kind, args.gait_order, GRAVITY[conditions[0]], mass)
+        head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,
+                    verified=verified, plan_wall_s=plan_s, feedback=args.feedback, certificate=kind)
+        heads.append(head | {"steps": len(plan.steps)})
+        if args.per_step:
+            step_records += [head | r for r in run_steps(plan, problem, conditions, opts_kw)]
+        else:
+            records += [head | r for r in run_plan(plan, problem, conditions, opts_kw)]
+    return heads, records, step_records
 
+
+def _print_records(rs: list[dict]) -> None:
+    for r in rs:
+        figures = (f"{r['max_mm']:.1f} | {r['final_mm']:.1f} | {r['final_deg']:.1f}"
+                   if r["status"] != "dropped" else f"drop at {r['drop_time']:.2f} s | {r['drop_step']} |")
+        print(f"| {r['problem']} | {r['method']} | {r['stability']} | {r['plan_status']}"
+              f"{'' if r['verified'] else ' (!v)'} | {len(r['open_gaits'])} / {r['gaits']} | {r['condition']} | "
+              f"{r['status']} | {figures} | {r['wall_s']:.1f} |", flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _args(argv)
+    from concurrent.futures import ProcessPoolExecutor
+
+    from machine import machine_info
+
+    info = machine_info(("mujoco", "numpy", "scipy", "casadi"))  # at the start: the commit that runs
+    jobs = [(path, stability, method, args) for path in problem_files(args.problems, args.pairs, args.problem_dir)
+            for stability in args.stability for method in args.methods]
     records, step_records, plans = [], [], []
-    for path in problem_files(args.problems, args.pairs, args.problem_dir):
-        problem = RegraspProblem.load(path)
-        mass = getattr(problem, "object_mass", None) or object_mass(path)
-        opts_kw = {"grip": args.grip, **({"object_mass": mass} if mass else {})}
-        for stability in args.stability:
-            for method in args.methods:
-                plan, verified, plan_s = make_plan(problem, method, stability, args.gait_order)
-                head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,
-                            verified=verified, plan_wall_s=plan_s)
-                plans.append(head | {"steps": len(plan.steps)})
-                _save(args, info, plans, records, step_records, complete=False)
-                if args.per_step:
-                    step_records += [head | r for r in run_steps(plan, problem, args.conditions, opts_kw)]
-                    print(f"{path.stem} {method} {stability}: {len(plan.steps)} steps", flush=True)
-                    continue
-                for r in run_plan(plan, problem, args.conditions, opts_kw):
-                    records.append(head | r)
-                    figures = (f"{r['max_mm']:.1f} | {r['final_mm']:.1f} | {r['final_deg']:.1f}"
-                               if r["status"] != "dropped" else f"drop at {r['drop_time']:.2f} s | "
-                               f"{r['drop_step']} |")
-                    print(f"| {path.stem} | {method} | {stability} | {plan.status}{'' if verified else ' (!v)'} "
-                          f"| {len(r['open_gaits'])} / {r['gaits']} | {r['condition']} | {r['status']} | "
-                          f"{figures} | {r['wall_s']:.1f} |", flush=True)
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        for heads, rs, step_rs in pool.map(_job, jobs):
+            plans += heads
+            records += rs
+            step_records += step_rs
+            _print_records(rs)
+            if args.per_step:
+                print(f"{heads[0]['problem']} {heads[0]['method']} {heads[0]['stability']}: "
+                      f"{[h['steps'] for h in heads]} steps", flush=True)
+            _save(args, info, plans, records, step_records, complete=False)
     print()
     print(step_table(step_records) if args.per_step else summary_table(records))
     _save(args, info, plans, records, step_records, complete=True)

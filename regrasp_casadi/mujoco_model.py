@@ -127,6 +127,10 @@ class SimOptions:
     min_handover_time: float = 0.1
     """Shortest load hand-over of a gait or slide step, s: such a step lasts at least
     min_handover_time / unload_fraction (a sudden change of the grip forces shakes the object)."""
+    slide_drag: bool = True
+    """The grip of a slide step plans for the sliding finger's kinetic friction: its force on the object
+    is f_n (−n + μ ŝ), ŝ the direction it slides in over the object, and the other fingers balance it
+    (False: the slider pushes along its normal only, frictionless as in its certificate)."""
     feedback: str = "object_pose"
     """Execution loop: "object_pose" closes it on the object's pose (an exact tracker; each holding tip
     moves by the rigid correction that takes the simulated object onto the plan, integrated, see

@@ -60,8 +60,9 @@ _TORQUE_LENGTH = 0.05   # m: torques are divided by it in the LP (comparable wit
 MOVING_FINGER_KINDS = ("gait", "slide")
 """Step kinds that move one finger (`PlanStep.finger`) while the others hold: it hands its load over
 first and takes it back at the end; a "gait" lifts it, a "slide" (the certified planner's) keeps it on
-the surface pushing along its contact normal only (the grip LP with that finger frictionless, as its
-certificate has it; physics still gives it friction, which the small normal force keeps small)."""
+the surface pushing along its contact normal; its certificate has it frictionless, but a finger that
+slides drags the object with kinetic friction μ f_n along its motion, which the grip LP plans the
+other fingers to balance (`SimOptions.slide_drag`; the LP's residual says when they cannot)."""
 
 
 # ------------------------------------------------------------------------------------------ plan motion
@@ -193,12 +194,15 @@ def _tangents(n: NDArray) -> tuple[NDArray, NDArray]:
 
 
 def _grip_lp(contacts: StepContacts, idx: NDArray, g_object: NDArray, mass: float, p_object_com: NDArray,
-             opts: SimOptions):
-    """Matrices of the grip LP in the variables (c_n, c_1, c_2) per holding finger, then 12 slacks."""
+             opts: SimOptions, drag: tuple[int, NDArray] | None = None):
+    """Matrices of the grip LP in the variables (c_n, c_1, c_2) per holding finger, then 12 slacks; `drag`
+    (row, d (3,)): that finger's normal push −n comes with the tangential force c_n d (kinetic friction)."""
     k = idx.size
     nv = 3 * k + 12
     mu = opts.grip_friction_fraction * opts.friction * np.cos(np.pi / 8)  # octagon inscribed in the cone
     basis = [np.column_stack([-contacts.n_object[j], *_tangents(contacts.n_object[j])]) for j in idx]
+    if drag is not None and drag[0] in idx:
+        basis[int(np.flatnonzero(idx == drag[0])[0])][:, 0] += drag[1]
     A_eq = np.zeros((6, nv))
     ub_rows, ub_rhs = [], []
     for a, j in enumerate(idx):
@@ -226,8 +230,8 @@ def _grip_lp(contacts: StepContacts, idx: NDArray, g_object: NDArray, mass: floa
 
 
 def grip_forces(contacts: StepContacts, holding: NDArray, g_object: NDArray, mass: float,
-                p_object_com: NDArray, opts: SimOptions, frictionless: int | None = None
-                ) -> tuple[NDArray, float]:
+                p_object_com: NDArray, opts: SimOptions, frictionless: int | None = None, *,
+                drag: NDArray | None = None) -> tuple[NDArray, float]:
     """Fingertip forces on the object that hold it against gravity (a linear program).
 
     For the fingers in ``holding``: minimise Σ normal force + 0.3 Σ |tangential components| + 1000 ·
@@ -239,6 +243,9 @@ def grip_forces(contacts: StepContacts, holding: NDArray, g_object: NDArray, mas
         contacts: the step's contacts (object frame); holding: (m,) bool, fingers that press;
         g_object: (3,) gravity in the object frame, m/s²; mass: kg; p_object_com: (3,) m;
         frictionless: the row of a finger that pushes along its normal only (a sliding finger), or None.
+        drag: (3,) object frame, the frictionless finger's kinetic friction per newton of its normal
+            force (μ times the unit direction it slides in over the object): its force on the object is
+            c_n (−n + drag), which the others must balance; None: none.
 
     Returns:
         (forces (m, 3) on the object, object frame, N, zero for fingers not holding;
@@ -249,7 +256,9 @@ def grip_forces(contacts: StepContacts, holding: NDArray, g_object: NDArray, mas
     if idx.size == 0:
         return forces, float(np.linalg.norm(mass * np.asarray(g_object)))
     k = idx.size
-    basis, A_eq, b_eq, A_ub, b_ub = _grip_lp(contacts, idx, g_object, mass, p_object_com, opts)
+    basis, A_eq, b_eq, A_ub, b_ub = _grip_lp(contacts, idx, g_object, mass, p_object_com, opts,
+                                             None if drag is None or frictionless is None
+                                             else (frictionless, np.asarray(drag, float)))
     # tangential components split into positive and negative parts: c_t = c_t+ − c_t−, both ≥ 0
     P = np.zeros((3 * k + 12, 5 * k + 12))
     for a in range(k):
@@ -299,11 +308,11 @@ def _plan_segments(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
     contacts = step_contacts(plan, hand)
     g_palm = np.asarray(opts.gravity_palm, dtype=float)
 
-    def grip(i: int, holding: NDArray, frictionless: int | None = None) -> tuple[NDArray, float]:
+    def grip(i: int, holding: NDArray, frictionless: int | None = None, drag=None) -> tuple[NDArray, float]:
         g_object = np.asarray(plan.steps[i].T_palm_object)[:3, :3].T @ g_palm
         if opts.grip == "squeeze":
             return np.zeros((len(holding), 3)), 0.0
-        return grip_forces(contacts[i], holding, g_object, mass, p_object_com, opts, frictionless)
+        return grip_forces(contacts[i], holding, g_object, mass, p_object_com, opts, frictionless, drag=drag)
 
     ends = [grip(i, contacts[i].touching) for i in range(len(plan.steps))]
     residual = [r for _, r in ends]
@@ -314,7 +323,7 @@ def _plan_segments(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
         g = list(plan.fingers).index(step.finger) if moving else None
         w_mid = c0.touching & c1.touching
         if g is not None and step.kind == "slide":  # the slider keeps pushing, along its normal only
-            F_mid, r_mid = grip(i - 1, w_mid, frictionless=g)
+            F_mid, r_mid = grip(i - 1, w_mid, frictionless=g, drag=_slide_drag(c0, c1, g, opts))
         elif g is not None:  # a gait: the lifted finger lets go
             w_mid = w_mid.copy()
             w_mid[g] = False
@@ -324,6 +333,18 @@ def _plan_segments(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
         residual[i] = max(residual[i], r_mid)
         segments.append(_Segment(ends[i - 1][0], F_mid, ends[i][0], c0.touching, w_mid, c1.touching, g))
     return segments, contacts, residual
+
+
+def _slide_drag(c0: StepContacts, c1: StepContacts, g: int, opts: SimOptions) -> NDArray | None:
+    """(3,) object frame: μ times the unit direction in which finger row g slides over the object from
+    contacts c0 to c1 (tangent plane at c0), the kinetic friction its push drags the object with per
+    newton of normal force; None when `SimOptions.slide_drag` is off or the finger does not move."""
+    n = c0.n_object[g]
+    d = c1.p_object[g] - c0.p_object[g]
+    d = d - (d @ n) * n
+    if not opts.slide_drag or np.linalg.norm(d) < 1e-6:
+        return None
+    return opts.friction * d / np.linalg.norm(d)
 
 
 def _phase_weights(seg: _Segment, s: float, opts: SimOptions):

@@ -143,6 +143,29 @@ def test_grip_forces_balance_gravity_within_the_cones(hand, box_problem):
     assert residual_one_face > opts.grip_force  # three ≥ 1 N pushes on one face, nothing opposes them
 
 
+def test_a_sliding_fingers_kinetic_friction_is_balanced_or_reported(hand, box_problem):
+    """A sliding thumb's force on the box is f_n (−n + μ ŝ) (its kinetic friction drags the box along its
+    motion ŝ); the LP's forces balance the wrench up to the residual it reports (statics recomputed
+    here); dragged at the full μ = 0.5 along the face, the three fingers opposite (friction 0.8 μ) cannot
+    hold the box against it."""
+    g0 = box_problem.grasp0
+    plan = make_plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object)])
+    contacts = step_contacts(plan, hand)[0]
+    opts, com = SimOptions(), np.zeros(3)
+    k = list(plan.fingers).index("thumb")
+    n = contacts.n_object[k]
+    s = np.cross(n, [0.0, 0.0, 1.0])
+    s /= np.linalg.norm(s)
+    for mu in (0.1, 0.5):
+        F, residual = grip_forces(contacts, contacts.touching, np.zeros(3), 0.2, com, opts, frictionless=k,
+                                  drag=mu * s)
+        np.testing.assert_allclose(np.cross(F[k], -n + mu * s), 0.0, atol=1e-9)
+        assert -F[k] @ n >= opts.grip_force - 1e-9
+        wrench = np.concatenate([F.sum(axis=0), np.cross(contacts.p_object - com, F).sum(axis=0) / 0.05])
+        assert np.linalg.norm(wrench[:3]) + np.linalg.norm(wrench[3:]) <= residual + 1e-6
+    assert residual > 0.5 * opts.grip_force, residual
+
+
 # ------------------------------------------------------------------------------------------ execution
 @pytest.mark.parametrize("gravity, hold", [((0.0, 0.0, 0.0), 1.0), (GRAVITY_DOWN, 2.0)])
 def test_initial_grasp_is_held(hand, box_problem, gravity, hold):
