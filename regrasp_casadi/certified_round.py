@@ -6,7 +6,8 @@ but only with a certified holding set (`holding.Holding`):
 1. *pick* (before any solve: one certificate per candidate, cheap): the next finger of P whose lift
    leaves the others holding the object ("pattern"; "stability": the largest margin first; "search":
    the best progress + margin score, `search_score`); when no finger of the round can lift, the first
-   that can *slide* (every finger holds, the slider frictionless); when none can, the round ends (the
+   that can *slide* (every finger holds, the slider dragging the object with kinetic friction along
+   its way to its goal, `Holding.slide`); when none can, the round ends (the
    reposing follows);
 2. *gait* (OPT1): while some finger farther than ζ from its goal can only slide, the finger goes where
    that slide stays certified and can advance (`_support_target`: a search over surface points, its
@@ -62,9 +63,9 @@ def certified_round(run: _Run) -> None:
             for f in order:
                 if f in blocked or run.holding.certified(lifts[f]):
                     continue
-                cert = run.holding.slide(run.q, run.T_palm_object, f)
+                cert = run.holding.slide(run.q, run.T_palm_object, f, _goal_way(run, run.q, f))
                 room = run.holding.options.slide_budget * o.finger_gait.eta - slid[f]
-                travelled = _slide(run, f, cert, room) if run.holding.certified(cert) else 0.0
+                travelled = _slide(run, f, room) if run.holding.certified(cert) else 0.0
                 slid[f] += travelled
                 if travelled < _MIN_MOVE or room - travelled <= _MIN_MOVE:
                     blocked.add(f)
@@ -127,6 +128,17 @@ def _solve(run: _Run, finger: str, eta: float | None, target: NDArray | None = N
     return None
 
 
+def _tip_object(run: _Run, q: NDArray, finger: str) -> NDArray:
+    """(3,) `finger`'s tip centre in the object frame (the run's object pose), m, hand at q (n,) rad."""
+    T = run.T_palm_object
+    return (np.asarray(run.hand.tip_positions(q), float)[run.fingers.index(finger)] - T[:3, 3]) @ T[:3, :3]
+
+
+def _goal_way(run: _Run, q: NDArray, finger: str) -> NDArray:
+    """(3,) object frame, m: from `finger`'s tip centre (hand at q) to its goal's, the way it would slide."""
+    return run.goal_tips[run.fingers.index(finger)] - _tip_object(run, q, finger)
+
+
 def _tip_move(run: _Run, finger: str, q_new: NDArray) -> float:
     r = run.fingers.index(finger)
     return float(np.linalg.norm(run.hand.tip_positions(q_new)[r] - run.hand.tip_positions(run.q)[r]))
@@ -153,9 +165,14 @@ def _gait(run: _Run, finger: str, cert: Certificate, todo: list[str]) -> None:
             first = res
             break
         eta *= 0.5
-    if first is not None:
-        run.q = first.q
-        run.add_step("gait", finger, first.status, first.solve_time, cert)
+    if first is None:
+        return
+    bad, path = run.unrealisable(first.q, run.T_palm_object, "gait", finger)
+    if bad:  # e.g. its touch-down into another finger: the finger stays
+        run.failures.append(f"gait of {finger} at step {len(run.steps)} refused: {bad}")
+        return
+    run.q = first.q
+    run.add_step("gait", finger, first.status, first.solve_time, cert, path)
 
 
 def _support_target(run: _Run, finger: str, sliders: list[str]) -> NDArray | None:
@@ -175,7 +192,8 @@ def _support_target(run: _Run, finger: str, sliders: list[str]) -> NDArray | Non
     i = run.fingers.index(finger)
     cand_tips, cand_c, cand_n = holding.surface_targets(tips[i], run.goal_tips[i], eta, ho.support_candidates)
     rows = [run.fingers.index(g) for g in sliders]
-    can_now = [j for j in rows if holding.certified(holding.slide(run.q, T, run.fingers[j]))]
+    can_now = [j for j in rows if holding.certified(holding.slide(run.q, T, run.fingers[j],
+                                                                  run.goal_tips[j] - tips[j]))]
     ahead = {}
     for j in rows:
         a = min(ho.support_advance, float(np.linalg.norm(run.goal_tips[j] - tips[j])))
@@ -189,11 +207,13 @@ def _support_target(run: _Run, finger: str, sliders: list[str]) -> NDArray | Non
         c[i], n[i] = cand_c[k], cand_n[k]
         for j in rows:
             slide = np.arange(m) == j
-            here = holding.hypothetical(c, n, T, np.ones(m, bool), slide).margin
+            n1 = n.copy()
+            n1[j] = holding.sliding_normal(n[j], run.goal_tips[j] - tips[j])
+            here = holding.hypothetical(c, n1, T, np.ones(m, bool), slide).margin
             if j in can_now:
                 keep[k] = min(keep[k], here)
             c2, n2 = c.copy(), n.copy()
-            c2[j], n2[j] = ahead[j]
+            c2[j], n2[j] = ahead[j][0], holding.sliding_normal(ahead[j][1], run.goal_tips[j] - tips[j])
             further = holding.hypothetical(c2, n2, T, np.ones(m, bool), slide).margin
             adv[k] = max(adv[k], min(here, further))
             worst[k] = min(worst[k], here, further)
@@ -225,15 +245,17 @@ def _movable(run: _Run, q: NDArray, fingers: list[str]) -> dict[str, bool]:
     out = {}
     for f in fingers:
         ok = holding.certified(holding.lift(q, T, f))
-        out[f] = ok or (holding.options.slide and holding.certified(holding.slide(q, T, f)))
+        out[f] = ok or (holding.options.slide
+                        and holding.certified(holding.slide(q, T, f, _goal_way(run, q, f))))
     return out
 
 
-def _slide(run: _Run, finger: str, cert: Certificate, budget: float) -> float:
+def _slide(run: _Run, finger: str, budget: float) -> float:
     """Slide `finger` towards its goal in certified steps of at most `slide_step` (see the module), the
     tip travelling at most `budget`, m; returns the distance travelled, m. A step goes straight to the
     goal when its end is certified, else to the surface point `slide_step` away of most progress whose
-    end is (`_slide_target`)."""
+    end is (`_slide_target`); it is kept when both its ends are certified with the finger sliding along
+    the step's motion (`Holding.slide`) and its path passes its checks (`_Run.unrealisable`)."""
     holding, ho = run.holding, run.holding.options
     r = run.fingers.index(finger)
     travelled, step = 0.0, ho.slide_step
@@ -248,15 +270,19 @@ def _slide(run: _Run, finger: str, cert: Certificate, budget: float) -> float:
         moved = _tip_move(run, finger, res.q)
         if moved < _MIN_MOVE:
             break
-        end = holding.slide(res.q, run.T_palm_object, finger)
-        if slide_path_error(run, finger, run.q, res.q) > ho.slide_tol or not holding.certified(end):
+        way = _tip_object(run, res.q, finger) - _tip_object(run, run.q, finger)  # the slide's motion
+        start, end = (holding.slide(q, run.T_palm_object, finger, way) for q in (run.q, res.q))
+        ok = slide_path_error(run, finger, run.q, res.q) <= ho.slide_tol and holding.certified(start) \
+            and holding.certified(end)
+        bad, path = run.unrealisable(res.q, run.T_palm_object, "slide", finger) if ok else ("off", None)
+        if bad:  # off the surface, not certified, or its path fails its checks: a shorter step
             step = 0.5 * min(step, moved)
             if step < 0.25 * ho.slide_step:
                 break
             continue
         run.q = res.q
-        run.add_step("slide", finger, res.status, res.solve_time, _weaker(cert, end))
-        cert, travelled = end, travelled + moved
+        run.add_step("slide", finger, res.status, res.solve_time, _weaker(start, end), path)
+        travelled += moved
     return travelled
 
 
@@ -277,7 +303,7 @@ def _slide_target(run: _Run, finger: str, distance: float) -> NDArray | None | b
         if k != 0 and progress[k] <= 0.0:
             break
         c, n = contacts.copy(), normals.copy()
-        c[i], n[i] = cand_c[k], cand_n[k]
+        c[i], n[i] = cand_c[k], holding.sliding_normal(cand_n[k], cand_c[k] - contacts[i])
         if holding.certified(holding.hypothetical(c, n, T, np.ones(m, bool), slide)):
             return None if k == 0 else cand_tips[k]
     return False

@@ -5,8 +5,11 @@ step whether the fingers that stay on the object hold it, and stores the answer 
 (`PlanStep.certificate`). The holding set of a step is:
 
 * a gait of finger r (it lifts off): every other finger, in the grasp it lifts from;
-* a slide of finger r (its tip stays on the surface): every finger, r frictionless (it slides), at the
-  start and at the end of the slide segment;
+* a slide of finger r (its tip stays on the surface): every finger, r sliding, at the start and at the
+  end of the slide segment. A sliding finger pushes along its normal and drags the object with kinetic
+  friction μ along its motion ŝ over the surface, f = f_n (−n + μ ŝ): a frictionless contact of normal
+  n' ∝ n − μ ŝ (`stability.sliding_normal`); the direction is the step's motion (new contact − old), or,
+  where a slide is only considered, the way to the finger's goal;
 * a reposing, a final move, the initial grasp: every finger, in the step's grasp.
 
 The contacts are the exact closest points of the tip-sphere centres (`ObjectModel.closest_points`) and the
@@ -46,6 +49,7 @@ from regrasp_casadi.stability import (
     contact_mu,
     contact_normals,
     force_closure_quality,
+    sliding_normal,
     torque_reference,
 )
 
@@ -79,7 +83,11 @@ class HoldingOptions:
     """Gravity: the planner's certified grasps hold (1 + this) × the weight."""
     slide: bool = True
     """A finger whose lift is not certified may slide along the surface instead (steps of kind
-    "slide", the finger frictionless in their certificate)."""
+    "slide"; in their certificate the finger pushes along its normal and drags the object with kinetic
+    friction μ along its motion, `stability.sliding_normal`)."""
+    kinetic_mu: float = MU
+    """Kinetic friction coefficient of a sliding finger: its drag on the object, μ_k per newton of normal
+    force along its motion (`stability.sliding_normal`). Not lowered with `mu`: more drag is the safe side."""
     slide_budget: float = 2.0
     """Largest tip travel of a finger's slides in one round, in gait bounds η (a lifted finger moves at
     most η; a slide is a sequence of steps of at most `slide_step`, each judged like a gait)."""
@@ -150,10 +158,17 @@ class Holding:
         hold = tuple(f != finger for f in self.fingers)
         return self._certificate(q, T_palm_object, hold, (False,) * len(self.fingers))
 
-    def slide(self, q: NDArray, T_palm_object: NDArray, finger: str) -> Certificate:
-        """Every finger in the grasp, `finger` frictionless (it slides)."""
+    def slide(self, q: NDArray, T_palm_object: NDArray, finger: str, direction: NDArray | None = None
+              ) -> Certificate:
+        """Every finger in the grasp, `finger` sliding in `direction` (3,), object frame (its kinetic
+        friction drags the object, `sliding_normal`; None: frictionless)."""
         return self._certificate(q, T_palm_object, (True,) * len(self.fingers),
-                                 tuple(f == finger for f in self.fingers))
+                                 tuple(f == finger for f in self.fingers), direction)
+
+    def sliding_normal(self, normal: NDArray, direction: NDArray | None) -> NDArray:
+        """The frictionless normal (3,) of a contact (outward normal (3,)) sliding in `direction` (3,),
+        object frame, with `HoldingOptions.kinetic_mu` (`stability.sliding_normal`)."""
+        return sliding_normal(normal, direction, self.options.kinetic_mu)
 
     def grasp(self, q: NDArray, T_palm_object: NDArray) -> Certificate:
         """Every finger in the grasp."""
@@ -215,12 +230,18 @@ class Holding:
             self._grasps[key] = (contacts, contact_normals(contacts, tips))
         return self._grasps[key]
 
-    def _certificate(self, q, T, hold: tuple[bool, ...], sliding: tuple[bool, ...]) -> Certificate:
+    def _certificate(self, q, T, hold: tuple[bool, ...], sliding: tuple[bool, ...],
+                     direction: NDArray | None = None) -> Certificate:
         q, T = np.asarray(q, float), np.asarray(T, float)
-        key = (q.tobytes(), T.tobytes(), hold, sliding)
+        d = None if direction is None else np.asarray(direction, float).reshape(3)
+        key = (q.tobytes(), T.tobytes(), hold, sliding, None if d is None else d.tobytes())
         if key not in self._certs:
             self.evaluations += 1
             contacts, normals = self.contacts(q, T)
+            if d is not None:
+                normals = normals.copy()
+                for j in np.flatnonzero(sliding):
+                    normals[j] = self.sliding_normal(normals[j], d)
             self._certs[key] = self._compute(contacts, normals, np.array(hold), np.array(sliding), T)
         return self._certs[key]
 
@@ -236,6 +257,6 @@ class Holding:
         ok = bool(eps > FORCE_CLOSURE_TOL)
         n_slide = int(np.sum(sliding & hold))
         detail = (f"{'force closure' if ok else 'no force closure'} of {int(hold.sum())} contacts"
-                  f"{f' ({n_slide} frictionless)' if n_slide else ''}: ε {eps:.3g} (planner, μ {o.mu:g}; "
+                  f"{f' ({n_slide} sliding)' if n_slide else ''}: ε {eps:.3g} (planner, μ {o.mu:g}; "
                   f"LP margin ≥ ε)")
         return Certificate("force_closure", ok, eps, None, detail)

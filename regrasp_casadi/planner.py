@@ -30,7 +30,7 @@ from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.solver import NLPCache
 from regrasp_casadi.stability import holding_quality, torque_reference
-from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories
+from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories, step_path
 
 if TYPE_CHECKING:
     from regrasp_casadi.grasp import Grasp
@@ -329,21 +329,19 @@ class _Run:
             return f"a contact slips {np.max(slip) * 1e3:.2f} mm on the object"
         return ""
 
-    def unrealisable(self, q: NDArray, T_palm_object: NDArray, kind: str = "repose"
-                     ) -> tuple[str, StepPath | None]:
-        """The reposing path (`repose_trajectory.repose_path`) from the last step to the grasp
-        (q, T_palm_object), the one `attach_trajectories` would give it, and why the hand could not move
-        the object along it: the path's own checks (a link in the object, fingers touching, a tip off the
-        surface, a slip, a joint limit, a gap in the IK); ("", None) without trajectories. The path of
-        an accepted move goes into its step (`add_step`), so it is computed once."""
+    def unrealisable(self, q: NDArray, T_palm_object: NDArray, kind: str = "repose",
+                     finger: str | None = None) -> tuple[str, StepPath | None]:
+        """The path (`trajectory.step_path`) from the last step to a step of `kind` (`finger`'s for a
+        gait) ending in (q, T_palm_object), the one `attach_trajectories` would give it, and why the hand
+        could not follow it: the path's own checks (a link in the object, fingers touching, a tip off
+        the surface, a slip, a joint limit, a gap in the IK); ("", None) without trajectories. An
+        accepted step keeps the path (`add_step`), so it is computed once."""
         if self.motion is None:
             return "", None
-        from regrasp_casadi.repose_trajectory import repose_path
-
         a = self.steps[-1]
-        b = replace(a, kind=kind, finger=None, q=np.asarray(q, float),
+        b = replace(a, kind=kind, finger=finger, q=np.asarray(q, float),
                     T_palm_object=np.asarray(T_palm_object, float), path=None, certificate=None)
-        path = repose_path(self.motion, a, b)
+        path = step_path(self.motion, a, b)
         return ("" if path.ok else f"its path fails its checks ({path.detail})"), path
 
     def start_staging(self) -> bool:
@@ -385,8 +383,12 @@ class _Run:
             moved = np.linalg.norm(self.hand.tip_positions(res.q)[r] - self.hand.tip_positions(self.q)[r])
             if moved < 1e-5:
                 continue
+            bad, path = self.unrealisable(res.q, self.T_palm_object, "gait", finger)
+            if bad:  # e.g. its touch-down into another finger: the finger stays
+                self.failures.append(f"gait of {finger} at step {len(self.steps)} refused: {bad}")
+                continue
             self.q = res.q
-            self.add_step("gait", finger, res.status, res.solve_time)
+            self.add_step("gait", finger, res.status, res.solve_time, None, path)
 
     def _most_stable_gait(self, todo: list[str]) -> str:
         """Remove and return the finger of `todo` whose lift leaves the best-held grasp."""

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from regrasp_casadi.constants import MU
 
 __all__ = [
-    "FRICTION_EDGES", "contact_mu", "tangent_basis", "primitive_wrenches", "torque_scale",
+    "FRICTION_EDGES", "contact_mu", "sliding_normal", "tangent_basis", "primitive_wrenches", "torque_scale",
     "force_closure_quality", "ferrari_canny", "contact_normals", "holding_quality", "torque_reference",
 ]
 
@@ -35,6 +35,25 @@ def contact_mu(mu: float | NDArray[np.float64], m: int, sliding: NDArray[np.bool
     if sliding is not None:
         mu_i[np.broadcast_to(np.asarray(sliding, bool), (m,))] = 0.0
     return mu_i
+
+
+def sliding_normal(normal: NDArray[np.float64], direction: NDArray[np.float64] | None,
+                   mu: float) -> NDArray[np.float64]:
+    """The normal n' (3,) that makes a SLIDING contact a frictionless one: a finger sliding over the
+    surface (outward unit normal n (3,)) in `direction` (3,) (its tip's motion over the object, any
+    length; only the tangential part ŝ counts) pushes on the object with f = f_n (−n + μ ŝ), kinetic
+    friction μ dragging the object along the slide; n' = (n − μ ŝ) / |n − μ ŝ|, so that f ∝ −n'. Without a
+    tangential direction (None or normal to the surface): n."""
+    n = np.asarray(normal, float)
+    if direction is None:
+        return n
+    d = np.asarray(direction, float)
+    d = d - (d @ n) * n
+    norm = float(np.linalg.norm(d))
+    if norm < 1e-9:
+        return n
+    tilted = n - mu * d / norm
+    return tilted / np.linalg.norm(tilted)
 
 
 def tangent_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

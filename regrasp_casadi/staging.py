@@ -2,9 +2,11 @@
 
 With `PlannerOptions.stability` "force_closure", a finger that opposes all the others (the Allegro
 thumb against index, middle and ring) can never lift: the three fingers left on one side are not in force
-closure. It can only slide, and a sliding finger is a frictionless contact (`holding.Holding.slide`). In
-most regrasps that slide is not certified at all: with the other fingers where they are, or at their
-goals, a frictionless thumb on its path from its contact to its goal leaves the grasp without force
+closure. It can only slide, and a sliding finger pushes along its normal and drags the object with kinetic
+friction along its motion (`holding.Holding.slide`; the figures below were measured when it was taken
+as frictionless). In most regrasps that slide is not certified at all:
+with the other fingers where they are, or at their goals, a frictionless thumb on its path from its
+contact to its goal leaves the grasp without force
 closure (measured on the shipped problems: margins −0.03 to −0.17 along the path, both with the others
 where they start and with them at their goals). The greedy round then stalls: the other fingers reach
 their goals and the thumb stays where it is.
@@ -12,7 +14,7 @@ their goals and the thumb stays where it is.
 The way out is a detour of the other fingers. This module searches, in contact space (force closure
 depends on the contacts only, not on the hand's configuration), for a *support configuration*: contacts
 S_j of the other fingers such that the pinned finger's whole straight surface path from its contact to
-its goal is certified with it frictionless and the others at S_j, and such that the moved fingers can
+its goal is certified with it sliding and the others at S_j, and such that the moved fingers can
 get to S one by one with certified lifts. The planner then aims the other fingers at S (their gaits,
 each certified as usual), slides the pinned finger to its goal, and moves the others on to their goals.
 
@@ -108,15 +110,18 @@ def path_margin(run: _Run, contacts: NDArray, normals: NDArray, finger: int, pat
                 path_n: NDArray, strict: bool = False) -> float | None:
     """The least certificate margin (ε for force closure, the weight scale for gravity) of the grasp
     (`contacts`, `normals` (m, 3), object frame) while finger `finger` (its row) slides along the surface
-    points `path_c`, `path_n` (k, 3), frictionless; None as soon as a sample is not certified
+    points `path_c`, `path_n` (k, 3), dragging the object with kinetic friction along its motion from the
+    previous point (`Holding.sliding_normal`); None as soon as a sample is not certified
     (`Holding.certified`; `strict`: a force-closure ε of at least twice `min_margin`)."""
     m, holding = len(contacts), run.holding
     slide = np.arange(m) == finger
     floor = 2.0 * holding.options.min_margin if strict and holding.kind == "force_closure" else -np.inf
     worst = np.inf
-    for c_k, n_k in zip(path_c, path_n, strict=True):
+    path_c = np.asarray(path_c, float).reshape(-1, 3)
+    ways = np.diff(np.vstack([contacts[finger], path_c]), axis=0)  # the slide's motion at each sample
+    for c_k, n_k, way in zip(path_c, path_n, ways, strict=True):
         c, n = contacts.copy(), normals.copy()
-        c[finger], n[finger] = c_k, n_k
+        c[finger], n[finger] = c_k, holding.sliding_normal(n_k, way)
         cert = holding.hypothetical(c, n, run.T_palm_object, np.ones(m, bool), slide)
         if not holding.certified(cert) or cert.margin < floor:
             return None

@@ -56,7 +56,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.plan import Plan, PlanStep
 
-__all__ = ["TrajectoryOptions", "plan_trajectories", "attach_trajectories"]
+__all__ = ["TrajectoryOptions", "step_path", "plan_trajectories", "attach_trajectories"]
 
 _log = logging.getLogger(__name__)
 
@@ -494,6 +494,20 @@ def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
 
 
 # --------------------------------------------------------------------------------------------- public
+def step_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath | None:
+    """The path of step b from step a: lift-off / transit / touch-down for a gait, on the surface for a
+    slide (`slide_trajectory.slide_path`), the reposing path for a repose or final move
+    (`repose_trajectory.repose_path`); None for any other step."""
+    from regrasp_casadi.repose_trajectory import repose_path  # they build on this module's IK and knots
+    from regrasp_casadi.slide_trajectory import slide_path
+
+    if b.kind in ("gait", "slide") and b.finger in ctx.hand.fingers:
+        return _gait_path(ctx, a, b) if b.kind == "gait" else slide_path(ctx, a, b)
+    if b.kind in ("repose", "final"):
+        return repose_path(ctx, a, b)
+    return None
+
+
 def plan_trajectories(plan_steps: Sequence[PlanStep], hand: Hand, obj: ObjectModel,
                       options: TrajectoryOptions | None = None) -> list[StepPath | None]:
     """The path of every step from the step before (None for the initial step and unknown kinds).
@@ -508,19 +522,11 @@ def plan_trajectories(plan_steps: Sequence[PlanStep], hand: Hand, obj: ObjectMod
         hand, obj: the models the plan was made with.
         options: `TrajectoryOptions` (default: issue 15's values).
     """
-    from regrasp_casadi.repose_trajectory import repose_path  # they build on this module's IK and knots
-    from regrasp_casadi.slide_trajectory import slide_path
     ctx = _Context(hand, obj, options or TrajectoryOptions())
     paths: list[StepPath | None] = [None]
     for a, b in zip(plan_steps[:-1], plan_steps[1:], strict=True):
-        if b.path is not None:  # computed already (the planner's in-grasp moves: `_Run.unrealisable`)
-            paths.append(b.path)
-        elif b.kind in ("gait", "slide") and b.finger in hand.fingers:
-            paths.append(_gait_path(ctx, a, b) if b.kind == "gait" else slide_path(ctx, a, b))
-        elif b.kind in ("repose", "final"):
-            paths.append(repose_path(ctx, a, b))
-        else:
-            paths.append(None)
+        # a path computed already (the planner's checked moves, `_Run.unrealisable`) is kept
+        paths.append(b.path if b.path is not None else step_path(ctx, a, b))
     flagged = [i for i, p in enumerate(paths) if p is not None and not p.ok]
     if flagged:
         _log.info("%d of %d paths failed their checks (steps %s)", len(flagged), len(paths) - 1, flagged)

@@ -1,7 +1,9 @@
 """verify's stability checks: the certificate of every step's holding set, and slide steps on the surface.
 
 Rows of `verify.CHECK_TABLE` ("slide_path", "unstable_gait"); they judge with verify's own tolerances
-(`Tolerances.mu`, `Tolerances.max_normal_force`, `Tolerances.surface_tol`), never the plan's. Also the
+(`Tolerances.mu`, `Tolerances.max_normal_force`, `Tolerances.surface_tol`), never the plan's. A slide's
+finger counts as pushing along its normal and dragging the object with kinetic friction μ along its
+motion over the surface (the step's exact contacts, previous to this), at both ends of the step. Also the
 stability metrics of every plan (the paper's force-closure margin of the gaits' holding fingers,
 `record_holding_quality`) and the stability line of `VerifyReport.summary`. Imports only the exact side
 of the package (certificates, stability, transforms, motion): no NLP or smooth-distance code.
@@ -17,7 +19,7 @@ from numpy.typing import NDArray
 
 from regrasp_casadi.certificates import GRAVITY, Certificate, certify_step, object_mass
 from regrasp_casadi.constants import MU
-from regrasp_casadi.stability import contact_normals, holding_quality
+from regrasp_casadi.stability import contact_normals, holding_quality, sliding_normal
 from regrasp_casadi.transforms import inv_T, transform_points
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -71,16 +73,22 @@ def stability_setting(plan: Plan, obj: ObjectModel, mass: float | None = None, g
     return StabilitySetting(kind, checked, m_kg, g)
 
 
-def holding_certificate(ctx: VerifyContext, k: int, hold: NDArray, sliding: NDArray) -> Certificate:
+def holding_certificate(ctx: VerifyContext, k: int, hold: NDArray, sliding: NDArray,
+                        direction: NDArray | None = None) -> Certificate:
     """The certificate (of the context's `stability` kind, verify's μ and force bound) of the fingers
-    `hold` (m,) bool in the exact grasp of step k, those of `sliding` (m,) frictionless."""
+    `hold` (m,) bool in the exact grasp of step k, those of `sliding` (m,) moving over the surface in
+    `direction` (3,), object frame: pushing along the normal and dragging the object with kinetic
+    friction μ (`stability.sliding_normal`; None: frictionless)."""
     step, exact = ctx.plan.steps[k], ctx.exact
     T = step.T_palm_object
     tips = transform_points(inv_T(T), exact.p_palm_tips[k])
     contacts = exact.p_object_closest[k]
     com, length = ctx.torque_reference
     st = ctx.stability
-    return certify_step(contacts, contact_normals(contacts, tips), hold, st.kind, ctx.tol.mu, st.mass,
+    normals = contact_normals(contacts, tips)
+    for j in np.flatnonzero(sliding):
+        normals[j] = sliding_normal(normals[j], direction, ctx.tol.mu)
+    return certify_step(contacts, normals, hold, st.kind, ctx.tol.mu, st.mass,
                         T[:3, :3].T @ st.gravity_palm, center=com, length=length, sliding=sliding,
                         max_normal_force=ctx.tol.max_normal_force)
 
@@ -138,7 +146,9 @@ def check_unstable_gait(ctx: VerifyContext, k: int, step: PlanStep) -> list[Find
     if step.kind == "gait" and k > 0:
         certs = [holding_certificate(ctx, k - 1, ~mover, nobody)]
     elif step.kind == "slide" and k > 0:
-        certs = [holding_certificate(ctx, j, everyone, mover) for j in (k - 1, k)]
+        fi = ctx.fingers.index(step.finger)
+        way = ctx.exact.p_object_closest[k][fi] - ctx.exact.p_object_closest[k - 1][fi]
+        certs = [holding_certificate(ctx, j, everyone, mover, way) for j in (k - 1, k)]
     else:
         certs = [holding_certificate(ctx, k, everyone, nobody)]
     worst = min(certs, key=lambda c: (c.ok, c.margin if np.isfinite(c.margin) else -np.inf))

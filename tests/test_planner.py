@@ -29,12 +29,12 @@ def box():
     return RegraspProblem.load(BOX_PROBLEM)
 
 
-CERTIFIED_CONVERGE = {("box_rotate", "svd"), ("box_rotate", "sd"), ("box_shift", "svd"), ("box_shift", "sd"),
-                      ("bottle_regrasp", "sd"), ("flat_tool_regrasp", "svd")}
-"""The shipped problems the certified planner (the default, stability "force_closure") solves (measured
-with the staging of pinned fingers, benchmarks/regression.py --no-ycb; box_shift and bottle_regrasp sd
-only converge through it); on the others it stalls before every contact is within ζ, with every step
-certified."""
+CERTIFIED_CONVERGE = {("box_shift", "sd")}
+"""The shipped problems the certified planner (the default, stability "force_closure") solves (measured,
+benchmarks/regression.py --no-ycb). Since a sliding finger drags the object with kinetic friction in
+its certificate, the thumb can no longer slide against three fingers on the opposite face, and the
+other plans stop before every contact is within ζ (stalled, or a reposing that brings nothing: status
+"solver_failure"), with every step certified."""
 
 KNOWN_MOTION_FAILURES: dict[tuple[str, str], str] = {}
 """Plans whose only violations are verify's sampled checks between the steps (`motion_*`; measured). None
@@ -69,7 +69,8 @@ def test_shipped_problem_plans_hold_the_object_and_verify(path, method):
         assert plan.status == "converged", plan.status_detail
         assert np.max(plan.steps[-1].contact_error) <= plan.options["zeta"]
     else:
-        assert plan.status in ("converged", "stalled", "iteration_limit"), plan.status_detail
+        assert plan.status in ("converged", "stalled", "iteration_limit", "solver_failure"), \
+            plan.status_detail
 
 
 @pytest.mark.slow  # 8 more plans; the default run checks the paper planner in test_stable_planner
@@ -177,7 +178,7 @@ def _box_contact_errors(problem, step) -> np.ndarray:
 
 
 def test_recorded_errors_are_the_contact_distances_and_fall_below_zeta(box):
-    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="svd")
+    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="svd", stability="none")  # the paper's planner
     assert plan.status == "converged", plan.status_detail
     initial = np.linalg.norm(box.grasp0.contacts_object - box.grasp_goal.contacts_object, axis=1)
     assert plan.iteration_errors[0] == pytest.approx(np.mean(initial), abs=1e-12)
@@ -286,7 +287,8 @@ def test_package_level_verify_accepts_valid_and_rejects_planted_violations(box):
 
 
 def test_stability_gait_order_plans_and_verifies(box):
-    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="sd", gait_order="stability")
+    """The paper's planner with the gait order of largest force-closure margin converges and verifies."""
+    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="sd", gait_order="stability", stability="none")
     assert plan.status == "converged", plan.status_detail
     assert verify(plan, box.hand, box.obj).ok
     bad = plan_regrasp(box.grasp0, box.grasp_goal, gait_order="random")
@@ -295,13 +297,13 @@ def test_stability_gait_order_plans_and_verifies(box):
 
 @pytest.mark.reference_data
 def test_a_ycb_regrasp_converges_and_verifies(reference_dir):
-    """One of the benchmark's YCB pairs (the sugar box, a coacd-decomposed scanned mesh), with the default
-    certified planner: catches what the generated objects cannot, e.g. a distance model that is accurate
-    on primitives only. (sugar-box_0: its pair, regenerated with the self-collision rule, converges with
-    stability "force_closure"; pringles_1, the pair used before, stalls with it, measured.)"""
+    """One of the benchmark's YCB pairs (the sugar box, a coacd-decomposed scanned mesh), with the paper's
+    planner (stability "none"): catches what the generated objects cannot, e.g. a distance model that is
+    accurate on primitives only. (The certified planner stalls on sugar-box_0 25 mm short since a sliding
+    finger drags the object in its certificates; measured.)"""
     path = Path(__file__).resolve().parents[1] / "benchmarks" / "problems" / "sugar-box_0.yaml"
     problem = RegraspProblem.load(path)
-    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd")
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", stability="none")
     assert plan.status == "converged", plan.status_detail
     report = verify(plan, problem.hand, problem.obj)
     assert report.ok, report.summary()

@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 from grasp_checks import force_closure_lp
 
-from regrasp_casadi.stability import FRICTION_EDGES, contact_normals, force_closure_quality, holding_quality
+from regrasp_casadi.stability import (
+    FRICTION_EDGES,
+    contact_normals,
+    force_closure_quality,
+    holding_quality,
+    sliding_normal,
+)
 
 # two pinches on opposite faces (x = ±3 cm) of a box, spread along y and z
 PINCHES = np.array([[0.03, 0.02, 0.02], [0.03, -0.02, -0.02], [-0.03, 0.02, -0.02], [-0.03, -0.02, 0.02]])
@@ -91,3 +97,32 @@ def test_holding_quality_agrees_with_an_lp_on_random_grasps():
             else:
                 opened += 1
     assert closed >= 20 and opened >= 10  # both outcomes are exercised (36 and 24 with this seed)
+
+
+def test_sliding_normal_is_the_direction_of_the_push_and_the_drag():
+    """A finger sliding in direction d over a surface of outward normal n pushes on the object with
+    f ∝ −n + μ ŝ (ŝ: d's unit tangential part); the frictionless contact of normal n' = (n − μ ŝ)/|·|
+    pushes along −n'. Only d's tangential part counts; without one the normal is unchanged."""
+    n = np.array([0.0, 0.0, 1.0])
+    expected = np.array([-0.5, 0.0, 1.0]) / np.sqrt(1.25)
+    np.testing.assert_allclose(sliding_normal(n, np.array([2.0, 0.0, 0.0]), 0.5), expected, atol=1e-12)
+    np.testing.assert_allclose(sliding_normal(n, np.array([2.0, 0.0, 7.0]), 0.5), expected, atol=1e-12)
+    np.testing.assert_allclose(sliding_normal(n, np.array([0.0, 0.0, 3.0]), 0.5), n, atol=1e-12)
+    np.testing.assert_allclose(sliding_normal(n, None, 0.5), n, atol=1e-12)
+
+
+@pytest.mark.parametrize("direction", [(1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (1.0, 0.0, 1.0), (0.3, 0.0, -1.0)])
+def test_a_finger_sliding_against_three_opposite_fingers_is_not_in_force_closure(direction):
+    """Three fingers on the face y = +3 cm of a box (a triangle around the axis, μ = 0.5) and a thumb on
+    y = −3 cm on that axis: with the thumb frictionless (the old slide model) the grasp is in force
+    closure; sliding, its kinetic friction μ f_n along its motion must be taken by the others' friction
+    (at most μ Σ f_n = μ f_n, equal to it) and the two make a couple 6 cm × μ f_n that the normal forces
+    (lever ≤ 1.5 cm) cannot balance: no force closure in any direction of the face."""
+    a, b = 0.03, 0.015
+    contacts = np.array([[0.0, a, b], [-b * np.cos(np.pi / 6), a, -b / 2], [b * np.cos(np.pi / 6), a, -b / 2],
+                         [0.0, -a, 0.0]])
+    normals = np.array([[0.0, 1.0, 0.0]] * 3 + [[0.0, -1.0, 0.0]])
+    mu = np.array([0.5, 0.5, 0.5, 0.0])
+    assert force_closure_quality(contacts, normals, mu, np.zeros(3), 0.05) > 0.05
+    normals[3] = sliding_normal(normals[3], np.array(direction), 0.5)
+    assert force_closure_quality(contacts, normals, mu, np.zeros(3), 0.05) < -0.05
