@@ -60,9 +60,9 @@ _TORQUE_LENGTH = 0.05   # m: torques are divided by it in the LP (comparable wit
 MOVING_FINGER_KINDS = ("gait", "slide")
 """Step kinds that move one finger (`PlanStep.finger`) while the others hold: it hands its load over
 first and takes it back at the end; a "gait" lifts it, a "slide" (the certified planner's) keeps it on
-the surface pushing along its contact normal; its certificate has it frictionless, but a finger that
-slides drags the object with kinetic friction μ f_n along its motion, which the grip LP plans the
-other fingers to balance (`SimOptions.slide_drag`; the LP's residual says when they cannot)."""
+the surface pushing along its contact normal (with `SimOptions.slide_drag`, the grip LP also plans
+the other fingers to balance its Coulomb kinetic friction μ f_n along its motion, and its residual
+says when they cannot)."""
 
 
 # ------------------------------------------------------------------------------------------ plan motion
