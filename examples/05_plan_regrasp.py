@@ -1,8 +1,8 @@
 """A full regrasp: plan, verify, save, and write a browser replay.
 
-Loads a shipped problem (a box held by the Allegro hand, and a desired grasp whose contacts are on
-average more than 3 cm away and whose object pose is turned), plans the regrasp with alternating finger
-gaits and reposings, checks the plan with the exact verifier, saves it as JSON and writes a
+Loads a shipped problem (a box held by the Allegro hand, and a desired grasp whose contacts are a few
+centimetres away), plans the regrasp with alternating finger gaits, slides and reposings, every step
+certified to hold the box, checks the plan with the exact verifier, saves it as JSON and writes a
 self-contained HTML replay. Open the HTML file in a browser: green dots are the desired contacts.
 """
 
@@ -18,8 +18,8 @@ PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--problem", default=str(PROBLEMS / "box_rotate.yaml"), help="problem file")
-    parser.add_argument("--method", choices=("svd", "sd"), default="svd")
+    parser.add_argument("--problem", default=str(PROBLEMS / "box_shift.yaml"), help="problem file")
+    parser.add_argument("--method", choices=("svd", "sd"), default="sd")
     parser.add_argument("--out", default="plan.json", help="where to save the plan")
     parser.add_argument("--html", default=None, help="write an HTML replay here (e.g. replay.html)")
     args = parser.parse_args(argv)

@@ -70,7 +70,7 @@ EXIT_INTERNAL = 3
 EXIT_INTERRUPTED = 130
 EXIT_BROKEN_PIPE = 128 + 13   # as a process killed by SIGPIPE: the reader of stdout went away
 
-DEMO_PROBLEM = builtin_problem("box_rotate")   # package data (regrasp_casadi.problems)
+DEMO_PROBLEM = builtin_problem("box_shift")   # package data (regrasp_casadi.problems)
 # the benchmark scripts are not package data: `regrasp bench` needs a source checkout
 BENCH_SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "paper_objects.py"
 
@@ -344,7 +344,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _demo_problem():
-    """The built-in problem (problems/box_rotate.yaml), or one generated in memory if it is missing."""
+    """The built-in problem (problems/box_shift.yaml: the certified planner solves it with the sd method),
+    or one generated in memory if it is missing."""
     from regrasp_casadi.problem import RegraspProblem
 
     if DEMO_PROBLEM.is_file():
@@ -516,7 +517,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = add("demo", "plan, verify and replay a regrasp on the built-in box problem")
     sp.add_argument("--out-dir", default=".", metavar="DIR",
                     help="folder for plan.json and replay.html (default: the current directory)")
-    sp.add_argument("--method", choices=("svd", "sd"), default="svd", help="in-grasp objective")
+    sp.add_argument("--method", choices=("svd", "sd"), default="sd",
+                    help="in-grasp objective (sd: the one that solves the built-in problem)")
     _add_speed(sp)
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
     sp.set_defaults(func=cmd_demo)
