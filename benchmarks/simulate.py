@@ -6,8 +6,11 @@
     python benchmarks/simulate.py --per-step                       # every step alone, by step kind
 
 Plans: `plan_regrasp` with each method (svd, sd) and each `PlannerOptions.stability` asked for ("none":
-the paper's planner; "force_closure": the certified planner of issue 14, whose every gait keeps a holding
-set in force closure); each is judged by `verify` (its own tolerances). Each plan is executed in four
+the paper's planner; "force_closure": the certified planner of issue 14, whose every step keeps a holding
+set in force closure; "gravity": one plan per condition, certified to hold the object's weight in that
+condition's gravity, "force_closure" for "off"); each is judged by `verify` (its own tolerances).
+Executed closed loop on the object's pose (`SimOptions.feedback`, default; ``--feedback none``: open
+loop). ``--workers N`` plans and executes N (problem, stability, method) jobs in parallel. Each plan is executed in four
 conditions (gravity in the palm frame, m/s²; the Allegro palm faces +x, its fingers point along +z):
 off (0, 0, 0), fingers up (0, 0, −9.81), palm up (−9.81, 0, 0), palm down (+9.81, 0, 0). Object mass:
 the problem's `object.mass`, else the published mass of a YCB object (`certificates.YCB_MASSES`), else
