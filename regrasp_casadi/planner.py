@@ -407,7 +407,8 @@ class _Run:
         if escape:  # repose towards the desired object pose
             nlp, target = self.svd_nlp, {"T_target": self.T_palm_object_goal}
         elif self.options.method == "svd":
-            T_target = svd_target(self.T_palm_object, self.steps[-1].contacts_object, self.goal_contacts)
+            T_target = svd_target(self.T_palm_object, self.steps[-1].contacts_object, self.goal_contacts,
+                                  self.T_palm_object_goal, self.svd_nlp.goal_pull)
             target = {"T_target": T_target}
         else:
             target = {"p_object_tips_goal": self.goal_tips}

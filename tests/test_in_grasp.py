@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from regrasp_casadi.in_grasp import InGraspNLP, svd_target, workspace_hull
 from regrasp_casadi.problem import RegraspProblem
@@ -139,3 +140,30 @@ def test_svd_target_brings_the_goal_contacts_where_the_contacts_are():
         T_target = svd_target(T, contacts, goal)
         assert np.allclose(transform_points(T_target, goal), transform_points(T, contacts), atol=1e-12)
         assert np.allclose(T_target[:3, :3].T @ T_target[:3, :3], np.eye(3), atol=1e-12)
+
+
+@pytest.mark.parametrize("alpha", [0.0, 0.3, 0.5, 1.0])
+def test_svd_target_with_goal_pull_is_the_least_squares_pose_onto_the_blended_points(alpha):
+    """With the desired pose T_d and goal_pull α the target is argmin_T Σ ||T x_goal − y||², y the blend
+    (1 − α) T x + α T_d x_goal (palm frame): checked against scipy's `Rotation.align_vectors` on the
+    centred points (and α = 0 is the paper's target, α = 1 is T_d when the goal is consistent)."""
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        T = make_T(exp_so3(rng.normal(size=3)), rng.normal(size=3) * 0.1)
+        T_goal = make_T(exp_so3(rng.normal(size=3)), rng.normal(size=3) * 0.1)
+        contacts, goal = rng.normal(size=(4, 3)) * 0.04, rng.normal(size=(4, 3)) * 0.04
+        y = (1 - alpha) * transform_points(T, contacts) + alpha * transform_points(T_goal, goal)
+        R_ref, _ = Rotation.align_vectors(y - y.mean(axis=0), goal - goal.mean(axis=0))
+        t_ref = y.mean(axis=0) - R_ref.as_matrix() @ goal.mean(axis=0)
+        T_target = svd_target(T, contacts, goal, T_goal, alpha)
+        assert rotation_angle(T_target[:3, :3], R_ref.as_matrix()) < 1e-7
+        assert np.allclose(T_target[:3, 3], t_ref, atol=1e-9)
+        if alpha == 0.0:
+            assert np.allclose(T_target, svd_target(T, contacts, goal), atol=1e-12)
+        if alpha == 1.0:
+            assert np.allclose(T_target, T_goal, atol=1e-9)
+
+
+def test_svd_target_rejects_a_goal_pull_above_one():
+    with pytest.raises(ValueError, match="goal_pull"):
+        svd_target(np.eye(4), np.eye(3), np.eye(3), np.eye(4), 1.5)
