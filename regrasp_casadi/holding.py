@@ -8,8 +8,8 @@ step whether the fingers that stay on the object hold it, and stores the answer 
 * a slide of finger r (its tip stays on the surface): every finger, r sliding, at the start and at the
   end of the slide segment. A sliding finger pushes along its normal and drags the object with kinetic
   friction μ along its motion ŝ over the surface, f = f_n (−n + μ ŝ): a frictionless contact of normal
-  n' ∝ n − μ ŝ (`stability.sliding_normal`); the direction is the step's motion (new contact − old), or,
-  where a slide is only considered, the way to the finger's goal;
+  n' ∝ n − μ ŝ (`stability.sliding_normal`); the direction is the step's motion (of the tip centre, new
+  − old), or, where a slide is only considered, the way to the finger's goal;
 * a reposing, a final move, the initial grasp: every finger, in the step's grasp.
 
 The contacts are the exact closest points of the tip-sphere centres (`ObjectModel.closest_points`) and the
