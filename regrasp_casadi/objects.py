@@ -43,6 +43,7 @@ from regrasp_casadi.convex import (
     coarse_pieces,
     convex_pieces,
     select_local_planes,
+    wall_piece,
 )
 from regrasp_casadi.errors import MeshError
 from regrasp_casadi.exact_distance import ExactDistance
@@ -56,6 +57,9 @@ __all__ = ["PRIMITIVES", "ObjectModel", "check_scale", "load_mesh"]
 log = logging.getLogger(__name__)
 
 _MAX_EXTENT_M = 2.0
+WALL_TOLERANCE = 1e-3
+"""How far (m) the convex pieces of the generated thin-walled shapes may reach into their cavity
+(`shapes.bowl_pieces`)."""
 
 PRIMITIVES = ("box", "cylinder", "sphere", "capsule", "bottle", "banana", "bowl", "cup", "mug", "flat_tool",
               "holed_box")
@@ -313,34 +317,61 @@ class ObjectModel:
                               max_planes_per_piece, convex=False, threshold=threshold)
 
     @classmethod
-    def bowl(cls, radius: float = 0.06, wall: float = 0.004, *, threshold: float = DEFAULT_THRESHOLD,
+    def _walled(cls, name: str, dims: dict, decomposition: str, tolerance: float, threshold: float,
+                max_planes: int) -> ObjectModel:
+        """A thin-walled generated shape (`shapes.<name>_mesh(**dims)`): its convex pieces by construction
+        (decomposition "walls": `shapes.<name>_pieces(**dims, tolerance=tolerance)`, face planes only, no
+        edge planes) or by coacd ("coacd", `threshold`)."""
+        mesh = getattr(shapes, f"{name}_mesh")(**dims)
+        spec = {"primitive": name, **dims}
+        if decomposition == "coacd":
+            spec["decomposition"] = "coacd"
+            return cls._primitive(mesh, name, spec, max_planes, convex=False, threshold=threshold)
+        if decomposition != "walls":
+            raise ValueError(f"decomposition must be 'walls' or 'coacd', not {decomposition!r}")
+        if tolerance != WALL_TOLERANCE:
+            spec["tolerance"] = float(tolerance)
+        if max_planes != DEFAULT_MAX_PLANES:
+            spec["max_planes_per_piece"] = max_planes
+        vertex_sets = getattr(shapes, f"{name}_pieces")(**dims, tolerance=float(tolerance))
+        pieces = [wall_piece(v, max_planes) for v in vertex_sets]
+        return cls(name, mesh, tuple(pc for pc in pieces if pc is not None), spec)
+
+    @classmethod
+    def bowl(cls, radius: float = 0.06, wall: float = 0.004, *, decomposition: str = "walls",
+             tolerance: float = WALL_TOLERANCE, threshold: float = DEFAULT_THRESHOLD,
              max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
-        """Thin-walled hemispherical bowl, 0.12 m across, 4 mm wall, open to +z; see `shapes.bowl_mesh`."""
+        """Thin-walled hemispherical bowl, 0.12 m across, 4 mm wall, open to +z; see `shapes.bowl_mesh`.
+
+        Convex pieces: decomposition "walls" (default), the wall cut into bands and sectors whose hulls
+        reach at most ≈ `tolerance` (m) into the bowl (`shapes.bowl_pieces`); "coacd": coacd at
+        `threshold` (over-covers the wall by several mm, see benchmarks/geometry.py).
+        """
         dims = {"radius": float(radius), "wall": float(wall)}
-        return cls._primitive(shapes.bowl_mesh(**dims), "bowl", {"primitive": "bowl", **dims},
-                              max_planes_per_piece, convex=False, threshold=threshold)
+        return cls._walled("bowl", dims, decomposition, tolerance, threshold, max_planes_per_piece)
 
     @classmethod
     def cup(cls, radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004, *,
+            decomposition: str = "walls", tolerance: float = WALL_TOLERANCE,
             threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
             ) -> ObjectModel:
-        """Thin-walled cylindrical cup, 0.08 m across, 0.1 m tall, 4 mm walls; see `shapes.cup_mesh`."""
+        """Thin-walled cylindrical cup, 0.08 m across, 0.1 m tall, 4 mm walls; see `shapes.cup_mesh`.
+        Convex pieces as `bowl`'s (`shapes.cup_pieces`: the bottom disc and the wall's sectors)."""
         dims = {"radius": float(radius), "height": float(height), "wall": float(wall),
                 "bottom": float(bottom)}
-        return cls._primitive(shapes.cup_mesh(**dims), "cup", {"primitive": "cup", **dims},
-                              max_planes_per_piece, convex=False, threshold=threshold)
+        return cls._walled("cup", dims, decomposition, tolerance, threshold, max_planes_per_piece)
 
     @classmethod
     def mug(cls, radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004,
-            handle_radius: float = 0.028, handle_thickness: float = 0.01, *,
-            threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
-            ) -> ObjectModel:
-        """`cup` with a handle (genus 1), 0.11 m across with the handle; see `shapes.mug_mesh`."""
+            handle_radius: float = 0.028, handle_thickness: float = 0.01, *, decomposition: str = "walls",
+            tolerance: float = WALL_TOLERANCE, threshold: float = DEFAULT_THRESHOLD,
+            max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
+        """`cup` with a handle (genus 1), 0.11 m across with the handle; see `shapes.mug_mesh`.
+        Convex pieces as `bowl`'s (`shapes.mug_pieces`: the cup's and the handle's arcs)."""
         dims = {"radius": float(radius), "height": float(height), "wall": float(wall),
                 "bottom": float(bottom), "handle_radius": float(handle_radius),
                 "handle_thickness": float(handle_thickness)}
-        return cls._primitive(shapes.mug_mesh(**dims), "mug", {"primitive": "mug", **dims},
-                              max_planes_per_piece, convex=False, threshold=threshold)
+        return cls._walled("mug", dims, decomposition, tolerance, threshold, max_planes_per_piece)
 
     @classmethod
     def flat_tool(cls, length: float = 0.20, thickness: float = 0.015, handle_width: float = 0.025,
