@@ -61,7 +61,6 @@ __all__ = [
     "select_local_planes",
     "select_local_planes_batch",
     "simplify_piece",
-    "wall_piece",
 ]
 
 log = logging.getLogger(__name__)
@@ -439,12 +438,6 @@ def _piece_or_none(vertices: NDArray, max_planes: int, edge_planes: bool = True)
         return None
     ok = np.all(np.isfinite(piece.normals)) and np.all(np.isfinite(piece.offsets))
     return piece if ok else None
-
-
-def wall_piece(vertices: NDArray, max_planes: int = DEFAULT_MAX_PLANES) -> ConvexPiece | None:
-    """The piece of a thin wall's vertices (v, 3), m: `simplify_piece` without edge planes (the edges of
-    a wall's pieces lie mostly inside the object, against the next piece), None if they span no volume."""
-    return _piece_or_none(vertices, max_planes, edge_planes=False)
 
 
 def _pieces_of(vertex_sets: list[NDArray], max_planes: int, fallback: NDArray,

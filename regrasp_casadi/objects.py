@@ -43,7 +43,6 @@ from regrasp_casadi.convex import (
     coarse_pieces,
     convex_pieces,
     select_local_planes,
-    wall_piece,
 )
 from regrasp_casadi.errors import MeshError
 from regrasp_casadi.exact_distance import ExactDistance
@@ -320,8 +319,11 @@ class ObjectModel:
     def _walled(cls, name: str, dims: dict, decomposition: str, tolerance: float, threshold: float,
                 max_planes: int) -> ObjectModel:
         """A thin-walled generated shape (`shapes.<name>_mesh(**dims)`): its convex pieces by construction
-        (decomposition "walls": `shapes.<name>_pieces(**dims, tolerance=tolerance)`, face planes only, no
-        edge planes) or by coacd ("coacd", `threshold`)."""
+        (decomposition "walls": `shapes.<name>_pieces(**dims, tolerance=tolerance)`, each with the fewest
+        face planes, at most `max_planes`, whose polytope reaches at most `tolerance` beyond its hull,
+        `piece_count.fewest_planes_piece`; no edge planes) or by coacd ("coacd", `threshold`)."""
+        from regrasp_casadi.piece_count import PLANE_COUNTS, fewest_planes_piece
+
         mesh = getattr(shapes, f"{name}_mesh")(**dims)
         spec = {"primitive": name, **dims}
         if decomposition == "coacd":
@@ -334,7 +336,8 @@ class ObjectModel:
         if max_planes != DEFAULT_MAX_PLANES:
             spec["max_planes_per_piece"] = max_planes
         vertex_sets = getattr(shapes, f"{name}_pieces")(**dims, tolerance=float(tolerance))
-        pieces = [wall_piece(v, max_planes) for v in vertex_sets]
+        counts = [k for k in PLANE_COUNTS if k < max_planes] + [max_planes]
+        pieces = [fewest_planes_piece(v, float(tolerance), counts) for v in vertex_sets]
         return cls(name, mesh, tuple(pc for pc in pieces if pc is not None), spec)
 
     @classmethod
