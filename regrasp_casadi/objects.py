@@ -56,7 +56,7 @@ __all__ = ["PRIMITIVES", "ObjectModel", "check_scale", "load_mesh"]
 log = logging.getLogger(__name__)
 
 _MAX_EXTENT_M = 2.0
-WALL_TOLERANCE = 1e-3
+WALL_TOLERANCE = 1.5e-3
 """How far (m) the convex pieces of the generated thin-walled shapes may reach into their cavity
 (`shapes.bowl_pieces`)."""
 

@@ -426,7 +426,7 @@ def _polar_bands(segments: int, rim_segments: int, depth: float, step: float, to
 
 
 def bowl_pieces(radius: float = 0.06, wall: float = 0.004, segments: int = 24, rim_segments: int = 8,
-                sections: int = 64, tolerance: float = 1e-3) -> list[np.ndarray]:
+                sections: int = 64, tolerance: float = 1.5e-3) -> list[np.ndarray]:
     """Convex pieces of `bowl_mesh` (same arguments): a polar cap and bands of the wall, each band split
     into sectors, so that no hull reaches more than about `tolerance` (m) into the bowl.
 
@@ -452,7 +452,7 @@ def _cup_bands(radius: float, height: float, wall: float, bottom: float, rim_seg
 
 
 def cup_pieces(radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004,
-               rim_segments: int = 8, sections: int = 64, tolerance: float = 1e-3) -> list[np.ndarray]:
+               rim_segments: int = 8, sections: int = 64, tolerance: float = 1.5e-3) -> list[np.ndarray]:
     """Convex pieces of `cup_mesh` (same arguments): the bottom disc and the wall (with its rim) split
     into sectors whose hulls reach at most `tolerance` (m) into the cup.
 
@@ -494,7 +494,7 @@ def _handle_pieces(radius: float, height: float, wall: float, handle_radius: flo
 
 def mug_pieces(radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004,
                handle_radius: float = 0.028, handle_thickness: float = 0.01, sections: int = 64, *,
-               tolerance: float = 1e-3) -> list[np.ndarray]:
+               tolerance: float = 1.5e-3) -> list[np.ndarray]:
     """Convex pieces of `mug_mesh` (same arguments): `cup_pieces` and the handle's (`_handle_pieces`),
     the pieces of the union's two operands.
 
