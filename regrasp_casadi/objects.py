@@ -59,6 +59,9 @@ _MAX_EXTENT_M = 2.0
 WALL_TOLERANCE = 1.5e-3
 """How far (m) the convex pieces of the generated thin-walled shapes may reach into their cavity
 (`shapes.bowl_pieces`)."""
+CLEARANCE_WALL_FACTOR = 4.0
+"""Their clearance model (`ObjectModel.clearance_pieces`) is the same construction at this many times the
+tolerance: fewer pieces for the non-tip spheres' distance, which the NLPs correct with exact offsets."""
 
 PRIMITIVES = ("box", "cylinder", "sphere", "capsule", "bottle", "banana", "bowl", "cup", "mug", "flat_tool",
               "holed_box")
@@ -149,10 +152,13 @@ class ObjectModel:
         spec: how to rebuild the object (`ObjectModel.from_spec`).
     """
 
-    def __init__(self, name: str, mesh: trimesh.Trimesh, pieces: tuple[ConvexPiece, ...], spec: dict):
+    def __init__(self, name: str, mesh: trimesh.Trimesh, pieces: tuple[ConvexPiece, ...], spec: dict, *,
+                 clearance_pieces: tuple[ConvexPiece, ...] | None = None):
         self.name = name
         self.mesh = mesh
         self.pieces = tuple(pieces)
+        self.clearance_pieces = None if clearance_pieces is None else tuple(clearance_pieces)
+        """Coarser pieces that also contain the mesh, for `clearance_distance_function` (None: `pieces`)."""
         self.spec = dict(spec)
         self._sd_functions: dict[tuple, ca.Function] = {}
         self._sd_maps: dict[tuple[float, int], ca.Function] = {}
@@ -338,7 +344,11 @@ class ObjectModel:
         vertex_sets = getattr(shapes, f"{name}_pieces")(**dims, tolerance=float(tolerance))
         counts = [k for k in PLANE_COUNTS if k < max_planes] + [max_planes]
         pieces = [fewest_planes_piece(v, float(tolerance), counts) for v in vertex_sets]
-        return cls(name, mesh, tuple(pc for pc in pieces if pc is not None), spec)
+        coarse_tol = CLEARANCE_WALL_FACTOR * float(tolerance)
+        coarse = [fewest_planes_piece(v, coarse_tol, counts)
+                  for v in getattr(shapes, f"{name}_pieces")(**dims, tolerance=coarse_tol)]
+        return cls(name, mesh, tuple(pc for pc in pieces if pc is not None), spec,
+                   clearance_pieces=tuple(pc for pc in coarse if pc is not None))
 
     @classmethod
     def bowl(cls, radius: float = 0.06, wall: float = 0.004, *, decomposition: str = "walls",
@@ -464,7 +474,7 @@ class ObjectModel:
         key = ("coarse", int(max_planes), tau)
         f = self._sd_functions.get(key)
         if f is None:
-            coarse = coarse_pieces(self.pieces, max_planes)
+            coarse = coarse_pieces(self.clearance_pieces or self.pieces, max_planes)
             f = sd.pieces_distance_function(f"sd_coarse_{self.name}", coarse, tau, "SX")
             self._sd_functions[key] = f
         return f

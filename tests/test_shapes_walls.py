@@ -108,3 +108,21 @@ def test_tolerance_round_trips_through_the_spec():
 def test_unknown_decomposition_is_an_error():
     with pytest.raises(ValueError, match="decomposition must be 'walls' or 'coacd', not 'voxels'"):
         ObjectModel.bowl(decomposition="voxels")
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_clearance_model_is_a_lower_bound_outside(kind):
+    """The clearance pieces contain the mesh, so outside it their hard distance never exceeds the exact
+    distance (trimesh) and, by their construction at CLEARANCE_WALL_FACTOR × tolerance, undershoots it by
+    at most twice that tolerance near the surface."""
+    from regrasp_casadi.objects import CLEARANCE_WALL_FACTOR
+
+    obj = getattr(ObjectModel, kind)()
+    assert obj.clearance_pieces is not None
+    pts, face = trimesh.sample.sample_surface(obj.mesh, 1500, seed=6)
+    q = pts + np.random.default_rng(0).uniform(0.0, 0.02, (len(pts), 1)) * obj.mesh.face_normals[face]
+    exact = -trimesh.proximity.signed_distance(obj.mesh, q)
+    hard = np.min([pc.hard_distance(q) for pc in obj.clearance_pieces], axis=0)
+    outside = exact > 0
+    assert np.all(hard[outside] <= exact[outside] + 1e-9)
+    assert np.max(exact - hard) <= 2 * CLEARANCE_WALL_FACTOR * WALL_TOLERANCE
