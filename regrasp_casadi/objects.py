@@ -466,7 +466,9 @@ class ObjectModel:
         Each piece is re-simplified to at most `max_planes` planes (`convex.coarse_pieces`: exact support
         values, so each coarse piece contains its piece and the value is a lower bound of the fine model's
         hard distance up to the smoothing bias): cheaper to differentiate, and conservative where only
-        d ≥ β matters. Cached.
+        d ≥ β matters. The pieces are `clearance_pieces` when the model has them (the thin-walled shapes:
+        coarser pieces that still contain the mesh, so outside it the hard value stays a lower bound of
+        the exact distance), else `pieces`. Cached.
         """
         from regrasp_casadi import signed_distance as sd
 

@@ -8,6 +8,10 @@ classmethods of the same names wrap them (see `regrasp_casadi.objects`). Closed 
 (of the smooth shapes the meshes approximate) are in the docstrings; the Boolean shapes (mug, holed box,
 tool outline) are built with manifold3d.
 
+The thin-walled shapes also come with their convex pieces by construction (`bowl_pieces`, `cup_pieces`,
+`mug_pieces`: vertex arrays in the mesh's frame whose hulls cover the mesh and reach into its cavity only
+by chords within a tolerance), which `ObjectModel.bowl` / `cup` / `mug` use instead of coacd.
+
     >>> from regrasp_casadi.shapes import banana_mesh
     >>> m = banana_mesh()
     >>> m.is_watertight
