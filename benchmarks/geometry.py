@@ -25,6 +25,17 @@ cores): cap 8 → 8 pieces / 1,242 planes, over-cover p99 / max 7.37 / 8.96 mm, 
 needs no more), so the chosen cap is 32. Not yet the primitives' default: the grasp NLP is too slow on
 3,860 planes (see benchmarks/README.md, `objects.py`).
 
+Thin-walled containers since commit 444f98a: `ObjectModel.bowl/cup/mug` default to convex pieces by
+construction (`shapes.bowl_pieces` …: bands of the profile × sectors about the axis, hulls of mesh
+vertices, chords within `objects.WALL_TOLERANCE` = 1.5 mm per direction; the fewest face planes within
+that tolerance, `piece_count.fewest_planes_piece`), no coacd: bowl 49 pieces / 540 planes, over-cover
+p99 / max 2.32 / 2.43 mm; cup 17 / 142, 0.68 / 0.69 mm; mug 24 / 234, 0.69 / 1.17 mm; built in 0.5–2.0 s;
+surface p99 2.31 / 0.77 / 0.90 mm (`--objects bowl cup mug --no-ycb`, commit 137ecb5,
+results/geometry_walls.json). Without edge planes the smooth value up to 3 cm off the surface is worse:
+outside p99 / max 5.93 / 8.79, 5.66 / 9.70, 6.96 / 19.88 mm, sign errors beyond 1 mm 42 / 0 / 6 of 6000
+(a lower bound off the rims' corners and across the cavity; the NLPs correct it with exact offsets).
+The table below is coacd's (`decomposition="coacd"`).
+
 Targets: surface |smooth − exact| ≤ 0.5 mm for 99 % of samples; no sign error beyond 1 mm; outside,
 smooth − exact ≤ τ·log k_max; one distance+gradient evaluation ≤ 20 µs.
 

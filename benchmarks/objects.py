@@ -8,7 +8,7 @@ judged by `verify`. Targets (issue 12): a pair in ≤ 60 s (median ≤ 20 s) on 
 pairs converged and verified per class and method.
 
     nice -n 10 python benchmarks/objects.py [--pairs 3] [--budget 60] [--classes sphere flat_tool ...]
-                                            [--no-plan] [--append] [--out FILE]
+                                            [--no-plan] [--append] [--out FILE] [--stability none]
 
 Writes each class's record with `machine.machine_info()` (CPU, load, versions, git commit) to
 benchmarks/results/objects.json and prints a Markdown table (the one in benchmarks/README.md).
@@ -50,10 +50,10 @@ def _build(name: str) -> tuple[ObjectModel, dict]:
                  "build_s": round(time.perf_counter() - t0, 2)}
 
 
-def _plan(pair, method: str) -> dict:
+def _plan(pair, method: str, stability: str = "force_closure") -> dict:
     t0 = time.perf_counter()
     try:
-        plan = plan_regrasp(*pair, method=method)
+        plan = plan_regrasp(*pair, method=method, stability=stability)
     except Exception as exc:  # a crash is a result to report, not a reason to stop the benchmark
         return {"method": method, "status": f"crash: {type(exc).__name__}: {exc}", "converged": False,
                 "verified": False, "plan_s": round(time.perf_counter() - t0, 1)}
@@ -72,7 +72,8 @@ def _progress(label: str, t0: float):
     return show
 
 
-def run_class(hand: Hand, name: str, n_pairs: int, budget: float, plan: bool) -> dict:
+def run_class(hand: Hand, name: str, n_pairs: int, budget: float, plan: bool,
+              stability: str = "force_closure") -> dict:
     """Build one class, draw its pairs (seeds 0..n_pairs−1) and plan each with both methods."""
     obj, record = _build(name)
     print(f"{name}: {record['pieces']} pieces, {record['planes']} planes, built in {record['build_s']} s",
@@ -91,7 +92,7 @@ def run_class(hand: Hand, name: str, n_pairs: int, budget: float, plan: bool) ->
             continue
         entry.update(found=True, gen_s=round(time.perf_counter() - t0, 1))
         if plan:
-            entry["plans"] = [_plan(pair, m) for m in METHODS]
+            entry["plans"] = [_plan(pair, m, stability) for m in METHODS]
         print(f"  {name} seed {seed}: {entry}", file=sys.stderr, flush=True)
         record["pairs"].append(entry)
     return record
@@ -134,6 +135,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget", type=float, default=60.0, help="seconds per pair")
     parser.add_argument("--classes", nargs="*", choices=list(CLASSES), default=list(CLASSES))
     parser.add_argument("--no-plan", action="store_true", help="only generate the pairs")
+    parser.add_argument("--stability", default="force_closure", choices=["force_closure", "gravity", "none"],
+                        help="the planner's stability rule (default: the default planner's)")
     parser.add_argument("--out", type=pathlib.Path, default=HERE / "results" / "objects.json")
     parser.add_argument("--append", action="store_true",
                         help="keep the records of the classes not run from an existing --out file")
@@ -146,8 +149,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.append and args.out.is_file():  # keep the other classes' records (each carries its machine)
         records = [r for r in json.loads(args.out.read_text())["records"] if r["class"] not in args.classes]
     for name in args.classes:
-        record = run_class(hand, name, args.pairs, args.budget, not args.no_plan)
-        record.update(machine=machine_info(), pairs_asked=args.pairs, budget_s=args.budget)
+        record = run_class(hand, name, args.pairs, args.budget, not args.no_plan, args.stability)
+        record.update(machine=machine_info(), pairs_asked=args.pairs, budget_s=args.budget,
+                      stability=args.stability)
         records.append(record)
         records.sort(key=lambda r: list(CLASSES).index(r["class"]))
         args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -56,6 +56,12 @@ __all__ = ["PRIMITIVES", "ObjectModel", "check_scale", "load_mesh"]
 log = logging.getLogger(__name__)
 
 _MAX_EXTENT_M = 2.0
+WALL_TOLERANCE = 1.5e-3
+"""How far (m) the convex pieces of the generated thin-walled shapes may reach into their cavity
+(`shapes.bowl_pieces`)."""
+CLEARANCE_WALL_FACTOR = 4.0
+"""Their clearance model (`ObjectModel.clearance_pieces`) is the same construction at this many times the
+tolerance: fewer pieces for the non-tip spheres' distance, which the NLPs correct with exact offsets."""
 
 PRIMITIVES = ("box", "cylinder", "sphere", "capsule", "bottle", "banana", "bowl", "cup", "mug", "flat_tool",
               "holed_box")
@@ -146,10 +152,13 @@ class ObjectModel:
         spec: how to rebuild the object (`ObjectModel.from_spec`).
     """
 
-    def __init__(self, name: str, mesh: trimesh.Trimesh, pieces: tuple[ConvexPiece, ...], spec: dict):
+    def __init__(self, name: str, mesh: trimesh.Trimesh, pieces: tuple[ConvexPiece, ...], spec: dict, *,
+                 clearance_pieces: tuple[ConvexPiece, ...] | None = None):
         self.name = name
         self.mesh = mesh
         self.pieces = tuple(pieces)
+        self.clearance_pieces = None if clearance_pieces is None else tuple(clearance_pieces)
+        """Coarser pieces that also contain the mesh, for `clearance_distance_function` (None: `pieces`)."""
         self.spec = dict(spec)
         self._sd_functions: dict[tuple, ca.Function] = {}
         self._sd_maps: dict[tuple[float, int], ca.Function] = {}
@@ -313,34 +322,69 @@ class ObjectModel:
                               max_planes_per_piece, convex=False, threshold=threshold)
 
     @classmethod
-    def bowl(cls, radius: float = 0.06, wall: float = 0.004, *, threshold: float = DEFAULT_THRESHOLD,
+    def _walled(cls, name: str, dims: dict, decomposition: str, tolerance: float, threshold: float,
+                max_planes: int) -> ObjectModel:
+        """A thin-walled generated shape (`shapes.<name>_mesh(**dims)`): its convex pieces by construction
+        (decomposition "walls": `shapes.<name>_pieces(**dims, tolerance=tolerance)`, each with the fewest
+        face planes, at most `max_planes`, whose polytope reaches at most `tolerance` beyond its hull,
+        `piece_count.fewest_planes_piece`; no edge planes) or by coacd ("coacd", `threshold`)."""
+        from regrasp_casadi.piece_count import PLANE_COUNTS, fewest_planes_piece
+
+        mesh = getattr(shapes, f"{name}_mesh")(**dims)
+        spec = {"primitive": name, **dims}
+        if decomposition == "coacd":
+            spec["decomposition"] = "coacd"
+            return cls._primitive(mesh, name, spec, max_planes, convex=False, threshold=threshold)
+        if decomposition != "walls":
+            raise ValueError(f"decomposition must be 'walls' or 'coacd', not {decomposition!r}")
+        if tolerance != WALL_TOLERANCE:
+            spec["tolerance"] = float(tolerance)
+        if max_planes != DEFAULT_MAX_PLANES:
+            spec["max_planes_per_piece"] = max_planes
+        vertex_sets = getattr(shapes, f"{name}_pieces")(**dims, tolerance=float(tolerance))
+        counts = [k for k in PLANE_COUNTS if k < max_planes] + [max_planes]
+        pieces = [fewest_planes_piece(v, float(tolerance), counts) for v in vertex_sets]
+        coarse_tol = CLEARANCE_WALL_FACTOR * float(tolerance)
+        coarse = [fewest_planes_piece(v, coarse_tol, counts)
+                  for v in getattr(shapes, f"{name}_pieces")(**dims, tolerance=coarse_tol)]
+        return cls(name, mesh, tuple(pc for pc in pieces if pc is not None), spec,
+                   clearance_pieces=tuple(pc for pc in coarse if pc is not None))
+
+    @classmethod
+    def bowl(cls, radius: float = 0.06, wall: float = 0.004, *, decomposition: str = "walls",
+             tolerance: float = WALL_TOLERANCE, threshold: float = DEFAULT_THRESHOLD,
              max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
-        """Thin-walled hemispherical bowl, 0.12 m across, 4 mm wall, open to +z; see `shapes.bowl_mesh`."""
+        """Thin-walled hemispherical bowl, 0.12 m across, 4 mm wall, open to +z; see `shapes.bowl_mesh`.
+
+        Convex pieces: decomposition "walls" (default), the wall cut into bands and sectors whose hulls
+        reach at most ≈ `tolerance` (m) into the bowl (`shapes.bowl_pieces`); "coacd": coacd at
+        `threshold` (over-covers the wall by several mm, see benchmarks/geometry.py).
+        """
         dims = {"radius": float(radius), "wall": float(wall)}
-        return cls._primitive(shapes.bowl_mesh(**dims), "bowl", {"primitive": "bowl", **dims},
-                              max_planes_per_piece, convex=False, threshold=threshold)
+        return cls._walled("bowl", dims, decomposition, tolerance, threshold, max_planes_per_piece)
 
     @classmethod
     def cup(cls, radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004, *,
+            decomposition: str = "walls", tolerance: float = WALL_TOLERANCE,
             threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
             ) -> ObjectModel:
-        """Thin-walled cylindrical cup, 0.08 m across, 0.1 m tall, 4 mm walls; see `shapes.cup_mesh`."""
+        """Thin-walled cylindrical cup, 0.08 m across, 0.1 m tall, 4 mm walls; see `shapes.cup_mesh`.
+        Convex pieces as `bowl`'s (`shapes.cup_pieces`: the bottom disc and the wall's sectors)."""
         dims = {"radius": float(radius), "height": float(height), "wall": float(wall),
                 "bottom": float(bottom)}
-        return cls._primitive(shapes.cup_mesh(**dims), "cup", {"primitive": "cup", **dims},
-                              max_planes_per_piece, convex=False, threshold=threshold)
+        return cls._walled("cup", dims, decomposition, tolerance, threshold, max_planes_per_piece)
 
     @classmethod
     def mug(cls, radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004,
-            handle_radius: float = 0.028, handle_thickness: float = 0.01, *,
-            threshold: float = DEFAULT_THRESHOLD, max_planes_per_piece: int = DEFAULT_MAX_PLANES,
-            ) -> ObjectModel:
-        """`cup` with a handle (genus 1), 0.11 m across with the handle; see `shapes.mug_mesh`."""
+            handle_radius: float = 0.028, handle_thickness: float = 0.01, *, decomposition: str = "walls",
+            tolerance: float = WALL_TOLERANCE, threshold: float = DEFAULT_THRESHOLD,
+            max_planes_per_piece: int = DEFAULT_MAX_PLANES) -> ObjectModel:
+        """`cup` with a handle (genus 1), 0.11 m across with the handle; see `shapes.mug_mesh`.
+        Convex pieces as `bowl`'s (`shapes.mug_pieces`: the cup's and the handle's arcs)."""
         dims = {"radius": float(radius), "height": float(height), "wall": float(wall),
                 "bottom": float(bottom), "handle_radius": float(handle_radius),
                 "handle_thickness": float(handle_thickness)}
-        return cls._primitive(shapes.mug_mesh(**dims), "mug", {"primitive": "mug", **dims},
-                              max_planes_per_piece, convex=False, threshold=threshold)
+        return cls._walled("mug", dims, decomposition, tolerance, threshold, max_planes_per_piece)
 
     @classmethod
     def flat_tool(cls, length: float = 0.20, thickness: float = 0.015, handle_width: float = 0.025,
@@ -422,7 +466,9 @@ class ObjectModel:
         Each piece is re-simplified to at most `max_planes` planes (`convex.coarse_pieces`: exact support
         values, so each coarse piece contains its piece and the value is a lower bound of the fine model's
         hard distance up to the smoothing bias): cheaper to differentiate, and conservative where only
-        d ≥ β matters. Cached.
+        d ≥ β matters. The pieces are `clearance_pieces` when the model has them (the thin-walled shapes:
+        coarser pieces that still contain the mesh, so outside it the hard value stays a lower bound of
+        the exact distance), else `pieces`. Cached.
         """
         from regrasp_casadi import signed_distance as sd
 
@@ -430,7 +476,7 @@ class ObjectModel:
         key = ("coarse", int(max_planes), tau)
         f = self._sd_functions.get(key)
         if f is None:
-            coarse = coarse_pieces(self.pieces, max_planes)
+            coarse = coarse_pieces(self.clearance_pieces or self.pieces, max_planes)
             f = sd.pieces_distance_function(f"sd_coarse_{self.name}", coarse, tau, "SX")
             self._sd_functions[key] = f
         return f

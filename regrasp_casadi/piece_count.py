@@ -10,6 +10,11 @@ previous one's cap already gave stops the sweep (coacd found no use for more pie
 
     >>> choice = choose_piece_count(mesh, counts=(1, 2, 4, 8, 16, 32))
     >>> choice.chosen, [(r.cap, r.pieces, r.p99_m) for r in choice.rows]
+
+The plane count of one piece is chosen the same way (`fewest_planes_piece`): the fewest face planes whose
+polytope (`convex.simplify_piece`: exact support values, so it contains the hull) reaches at most a
+tolerance beyond the piece's hull (`polytope_excess`). The thin-walled shapes' pieces by construction
+(`shapes.bowl_pieces`, …) use it: a wall sector spans many mesh facets that a few planes cover.
 """
 
 from __future__ import annotations
@@ -18,11 +23,17 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
 import trimesh
+from numpy.typing import NDArray
 
 from regrasp_casadi import convex
 
-__all__ = ["PieceCountRow", "PieceCountChoice", "choose_piece_count"]
+__all__ = ["PLANE_COUNTS", "PieceCountRow", "PieceCountChoice", "choose_piece_count", "fewest_planes_piece",
+           "polytope_excess"]
+
+PLANE_COUNTS = (6, 8, 12, 16, 24, 32, 48, 64)
+"""Face-plane caps `fewest_planes_piece` tries, in this order."""
 
 
 @dataclass(frozen=True)
@@ -91,3 +102,36 @@ def choose_piece_count(mesh: trimesh.Trimesh, counts: Sequence[int] = (1, 2, 4, 
     if chosen is None:
         chosen = rows[-1].cap
     return PieceCountChoice(chosen, tuple(rows))
+
+
+def polytope_excess(piece: convex.ConvexPiece) -> float:
+    """How far (m) the polytope {p: N p ≤ h} of a piece reaches beyond the convex hull of its vertices:
+    the largest exact distance of the polytope's vertices (scipy's half-space intersection) to the hull
+    (trimesh); inf if the polytope is unbounded or degenerate."""
+    from scipy.spatial import HalfspaceIntersection, QhullError
+
+    v = np.asarray(piece.vertices, float)
+    inside = v.mean(axis=0)
+    try:
+        halfspaces = np.column_stack([piece.normals, -piece.offsets])
+        with np.errstate(divide="ignore", invalid="ignore"):  # an unbounded polytope: inf corners
+            corners = HalfspaceIntersection(halfspaces, inside).intersections
+    except (QhullError, ValueError):
+        return float("inf")
+    if not np.all(np.isfinite(corners)) or np.max(np.abs(corners - inside)) > 1e3:
+        return float("inf")
+    _, dist, _ = trimesh.proximity.closest_point(trimesh.convex.convex_hull(v), corners)
+    return float(np.max(dist))
+
+
+def fewest_planes_piece(vertices: NDArray[np.float64], tolerance: float,
+                        counts: Sequence[int] = PLANE_COUNTS) -> convex.ConvexPiece | None:
+    """The piece of the hull of `vertices` (v, 3), m, with the fewest face planes among `counts` whose
+    polytope reaches at most `tolerance` (m) beyond the hull (`polytope_excess`), without edge planes; the
+    largest count's piece if none does; None if the points span no volume."""
+    piece = None
+    for k in sorted(int(c) for c in counts):
+        piece = convex._piece_or_none(vertices, k, edge_planes=False)
+        if piece is None or len(piece.normals) < k or polytope_excess(piece) <= tolerance:
+            return piece
+    return piece

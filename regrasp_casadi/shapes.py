@@ -8,6 +8,10 @@ classmethods of the same names wrap them (see `regrasp_casadi.objects`). Closed 
 (of the smooth shapes the meshes approximate) are in the docstrings; the Boolean shapes (mug, holed box,
 tool outline) are built with manifold3d.
 
+The thin-walled shapes also come with their convex pieces by construction (`bowl_pieces`, `cup_pieces`,
+`mug_pieces`: vertex arrays in the mesh's frame whose hulls cover the mesh and reach into its cavity only
+by chords within a tolerance), which `ObjectModel.bowl` / `cup` / `mug` use instead of coacd.
+
     >>> from regrasp_casadi.shapes import banana_mesh
     >>> m = banana_mesh()
     >>> m.is_watertight
@@ -31,6 +35,9 @@ __all__ = [
     "mug_mesh",
     "flat_tool_mesh",
     "holed_box_mesh",
+    "bowl_pieces",
+    "cup_pieces",
+    "mug_pieces",
 ]
 
 
@@ -206,11 +213,17 @@ def bowl_mesh(radius: float = 0.06, wall: float = 0.004, segments: int = 24, rim
     Returns:
         Watertight mesh, metres, genus 0, centred at its centre of mass (opening towards +z).
     """
+    return _centre(_revolve(_bowl_profile(radius, wall, segments, rim_segments), sections))
+
+
+def _bowl_profile(radius: float, wall: float, segments: int, rim_segments: int) -> np.ndarray:
+    """`bowl_mesh`'s closed (r, z) profile: the outer quarter circle from the pole up (segments + 1
+    points), the rim (rim_segments − 1), the inner quarter circle from the rim down (segments + 1)."""
     R, w = float(radius), float(wall)
     profile = np.concatenate([_arc((0.0, 0.0), R, -np.pi / 2, 0.0, segments), _rim(R, w, 0.0, rim_segments),
                               _arc((0.0, 0.0), R - w, 0.0, -np.pi / 2, segments)])
     profile[[0, -1], 0] = 0.0  # exactly on the axis
-    return _centre(_revolve(profile, sections))
+    return profile
 
 
 def cup_mesh(radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004,
@@ -231,10 +244,15 @@ def cup_mesh(radius: float = 0.04, height: float = 0.095, wall: float = 0.004, b
     Returns:
         Watertight mesh, metres, genus 0, centred at its centre of mass (opening towards +z).
     """
+    return _centre(_revolve(_cup_profile(radius, height, wall, bottom, rim_segments), sections))
+
+
+def _cup_profile(radius: float, height: float, wall: float, bottom: float, rim_segments: int) -> np.ndarray:
+    """`cup_mesh`'s closed (r, z) profile: (0, 0), (R, 0), (R, H), the rim (rim_segments − 1 points),
+    (R − w, H), (R − w, b), (0, b)."""
     R, H, w, b = float(radius), float(height), float(wall), float(bottom)
-    profile = np.concatenate([[[0.0, 0.0], [R, 0.0], [R, H]], _rim(R, w, H, rim_segments),
-                              [[R - w, H], [R - w, b], [0.0, b]]])
-    return _centre(_revolve(profile, sections))
+    return np.concatenate([[[0.0, 0.0], [R, 0.0], [R, H]], _rim(R, w, H, rim_segments),
+                           [[R - w, H], [R - w, b], [0.0, b]]])
 
 
 def _torus_xz(major: float, minor: float, centre, n_major: int, n_minor: int) -> trimesh.Trimesh:
@@ -261,6 +279,12 @@ def mug_mesh(radius: float = 0.04, height: float = 0.095, wall: float = 0.004, b
     Returns:
         Watertight mesh, metres, genus 1, centred at its centre of mass.
     """
+    return _centre(_mug_solid(radius, height, wall, bottom, handle_radius, handle_thickness, sections))
+
+
+def _mug_solid(radius: float, height: float, wall: float, bottom: float, handle_radius: float,
+               handle_thickness: float, sections: int) -> trimesh.Trimesh:
+    """`mug_mesh` before centring (the cup's axis is the z axis, its bottom at z = 0)."""
     import manifold3d
 
     from regrasp_casadi.mesh_repair import from_manifold, to_manifold
@@ -268,14 +292,12 @@ def mug_mesh(radius: float = 0.04, height: float = 0.095, wall: float = 0.004, b
     R, H, w, b = float(radius), float(height), float(wall), float(bottom)
     if handle_radius + handle_thickness / 2 >= H / 2 - b:
         raise ValueError(f"handle_radius={handle_radius}: the handle must fit between the bottom and the rim")
-    cup = _revolve(np.concatenate([[[0.0, 0.0], [R, 0.0], [R, H]], _rim(R, w, H, 8),
-                                   [[R - w, H], [R - w, b], [0.0, b]]]), sections)
+    cup = _revolve(_cup_profile(R, H, w, b, 8), sections)
     torus = _torus_xz(handle_radius, handle_thickness / 2, (R, 0.0, H / 2), 48, 16)
     cavity = trimesh.creation.cylinder(radius=R - w / 2, height=H, sections=int(sections))
     cavity.apply_translation([0.0, 0.0, b + H / 2])
     handle = to_manifold(torus) - to_manifold(cavity)
-    mesh = from_manifold(manifold3d.Manifold.batch_boolean([to_manifold(cup), handle], manifold3d.OpType.Add))
-    return _centre(mesh)
+    return from_manifold(manifold3d.Manifold.batch_boolean([to_manifold(cup), handle], manifold3d.OpType.Add))
 
 
 def flat_tool_mesh(length: float = 0.20, thickness: float = 0.015, handle_width: float = 0.025,
@@ -349,3 +371,142 @@ def holed_box_mesh(extents=(0.05, 0.07, 0.09), hole_radius: float = 0.002, secti
     box = to_manifold(trimesh.creation.box(extents=(ex, ey, ez)))
     solid = box - manifold3d.Manifold.batch_boolean(tunnels, manifold3d.OpType.Add)
     return _centre(from_manifold(solid))
+
+
+# ---------------------------------------------------------------------------- convex pieces of thin walls
+# A thin wall's convex pieces, by construction: coacd's pieces of a 4 mm wall over-cover it by 3.8–7.6 mm
+# (benchmarks/geometry.py). A solid of revolution is cut along its profile into bands (polygons of
+# consecutive profile points) and around the axis into sectors; each piece is the hull of a band's points
+# at the mesh's section angles of one sector, so its vertices are mesh vertices and the union of the
+# pieces is the mesh up to the chords the hulls draw across the concave (cavity) side of a piece.
+def _sectors(r_max: float, sections: int, tolerance: float) -> int:
+    """The fewest sectors K (a divisor of `sections`, by doubling) whose chord at radius `r_max` (m) dips
+    r_max·(1 − cos(π/K)) ≤ `tolerance` (m) below the circle."""
+    k = 1 if r_max <= tolerance else 2
+    while k < sections and (r_max * (1.0 - np.cos(np.pi / k)) > tolerance or sections % k):
+        k *= 2
+    return min(k, int(sections))
+
+
+def _revolved_pieces(profile: np.ndarray, bands: list[np.ndarray], sections: int,
+                     tolerance: float) -> list[np.ndarray]:
+    """Convex pieces (vertex arrays (v, 3), m) of the solid of revolution of `profile` (n, 2) (r, z) over
+    `sections` sections: each band (profile point indices, or (k, 2) points on the surface) revolved
+    over the sectors of `_sectors` (one piece, the band's full revolution, if the band touches the axis)."""
+    angles = 2.0 * np.pi * np.arange(int(sections) + 1) / int(sections)
+    out = []
+    for band in bands:
+        pts = profile[band] if np.asarray(band).dtype.kind in "iu" else np.asarray(band, float)
+        on_axis = bool(np.any(pts[:, 0] <= 1e-12))
+        k = 1 if on_axis else _sectors(float(np.max(pts[:, 0])), sections, tolerance)
+        step = int(sections) // k
+        for s in range(k):
+            a = angles[s * step:(s + 1) * step + 1]
+            ring = np.stack([np.outer(np.cos(a), pts[:, 0]), np.outer(np.sin(a), pts[:, 0]),
+                             np.broadcast_to(pts[:, 1], (len(a), len(pts)))], axis=-1)
+            out.append(ring.reshape(-1, 3))
+    return out
+
+
+def _polar_bands(segments: int, rim_segments: int, depth: float, step: float, tolerance: float
+                 ) -> list[np.ndarray]:
+    """`_bowl_profile`'s bands: a polar cap of g₀ segments, depth·(1 − cos g₀δ) ≤ tolerance, then bands
+    of g segments, depth·(1 − cos(gδ/2)) ≤ tolerance (δ = `step` rad per segment, `depth` the inner
+    radius, m), the last with the rim; each band holds the outer and inner points of its polar range."""
+    n = int(segments)
+    g0 = max(1, int(np.floor(np.arccos(1.0 - min(tolerance / depth, 1.0)) / step)))
+    g = max(1, int(np.floor(2.0 * np.arccos(1.0 - min(tolerance / depth, 1.0)) / step)))
+    edges = [0, min(g0, n)]
+    while edges[-1] < n:
+        edges.append(min(edges[-1] + g, n))
+    inner0 = n + int(rim_segments)  # index of the inner circle's first point (at the rim)
+    bands = []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        outer = np.arange(a, b + 1)
+        inner = inner0 + np.arange(n - b, n - a + 1)
+        rim = np.arange(n + 1, inner0) if b == n else np.arange(0)
+        bands.append(np.concatenate([outer, rim, inner]))
+    return bands
+
+
+def bowl_pieces(radius: float = 0.06, wall: float = 0.004, segments: int = 24, rim_segments: int = 8,
+                sections: int = 64, tolerance: float = 1.5e-3) -> list[np.ndarray]:
+    """Convex pieces of `bowl_mesh` (same arguments): a polar cap and bands of the wall, each band split
+    into sectors, so that no hull reaches more than about `tolerance` (m) into the bowl.
+
+    Returns:
+        Vertex arrays (v_i, 3), m, in `bowl_mesh`'s frame (vertices of the mesh).
+    """
+    profile = _bowl_profile(radius, wall, segments, rim_segments)
+    bands = _polar_bands(segments, rim_segments, float(radius) - float(wall), np.pi / 2 / int(segments),
+                         tolerance)
+    shift = _revolve(profile, sections).center_mass
+    return [v - shift for v in _revolved_pieces(profile, bands, sections, tolerance)]
+
+
+def _cup_bands(radius: float, height: float, wall: float, bottom: float, rim_segments: int
+               ) -> list[np.ndarray]:
+    """`_cup_profile`'s bands: the bottom disc (r ≤ R, z ≤ b) and the wall with its rim (R − w ≤ r ≤ R)."""
+    R, b = float(radius), float(bottom)
+    n = 3 + int(rim_segments) - 1  # points up to (R − w, H)
+    profile = _cup_profile(radius, height, wall, bottom, rim_segments)
+    disc = np.array([[0.0, 0.0], [R, 0.0], [R, b], [0.0, b]])
+    wall_band = np.concatenate([profile[1:n + 2], [[R - float(wall), 0.0]]])
+    return [disc, wall_band]
+
+
+def cup_pieces(radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004,
+               rim_segments: int = 8, sections: int = 64, tolerance: float = 1.5e-3) -> list[np.ndarray]:
+    """Convex pieces of `cup_mesh` (same arguments): the bottom disc and the wall (with its rim) split
+    into sectors whose hulls reach at most `tolerance` (m) into the cup.
+
+    Returns:
+        Vertex arrays (v_i, 3), m, in `cup_mesh`'s frame (points of the mesh's surface or inside it).
+    """
+    profile = _cup_profile(radius, height, wall, bottom, rim_segments)
+    bands = _cup_bands(radius, height, wall, bottom, rim_segments)
+    shift = _revolve(profile, sections).center_mass
+    return [v - shift for v in _revolved_pieces(profile, bands, sections, tolerance)]
+
+
+def _handle_pieces(radius: float, height: float, wall: float, handle_radius: float, handle_thickness: float,
+                   tolerance: float) -> list[np.ndarray]:
+    """Convex pieces of `_mug_solid`'s handle: the hulls of arcs of the torus's tube whose chords stay
+    within `tolerance` (m) of its inner side, cut at the plane x = R − w (inside the cup's wall); arcs
+    wholly inside the cup are dropped. Vertex arrays (v, 3), m, `_mug_solid`'s frame."""
+    R, H, w = float(radius), float(height), float(wall)
+    a, rho = float(handle_radius), 0.5 * float(handle_thickness)
+    n_major = 48
+    torus = _torus_xz(a, rho, (R, 0.0, H / 2), n_major, 16)
+    v = np.asarray(torus.vertices)
+    u = np.mod(np.arctan2(v[:, 2] - H / 2, v[:, 0] - R), 2 * np.pi)
+    section = np.round(u / (2 * np.pi / n_major)).astype(int) % n_major
+    step = 1
+    while step < n_major // 4 and (a - rho) * (1 - np.cos((step + 1) * np.pi / n_major)) <= tolerance:
+        step += 1
+    out = []
+    for s0 in range(0, n_major, step):
+        arc = np.isin(section, np.arange(s0, s0 + step + 1) % n_major)
+        hull = trimesh.convex.convex_hull(v[arc])
+        if float(np.max(hull.vertices[:, 0])) <= R - w + 1e-9:
+            continue
+        cut = trimesh.intersections.slice_mesh_plane(hull, [1.0, 0.0, 0.0], [R - w, 0.0, 0.0], cap=True)
+        if cut is not None and len(cut.vertices) >= 4:
+            out.append(np.asarray(cut.vertices))
+    return out
+
+
+def mug_pieces(radius: float = 0.04, height: float = 0.095, wall: float = 0.004, bottom: float = 0.004,
+               handle_radius: float = 0.028, handle_thickness: float = 0.01, sections: int = 64, *,
+               tolerance: float = 1.5e-3) -> list[np.ndarray]:
+    """Convex pieces of `mug_mesh` (same arguments): `cup_pieces` and the handle's (`_handle_pieces`),
+    the pieces of the union's two operands.
+
+    Returns:
+        Vertex arrays (v_i, 3), m, in `mug_mesh`'s frame.
+    """
+    profile = _cup_profile(radius, height, wall, bottom, 8)
+    pieces = _revolved_pieces(profile, _cup_bands(radius, height, wall, bottom, 8), sections, tolerance)
+    pieces += _handle_pieces(radius, height, wall, handle_radius, handle_thickness, tolerance)
+    shift = _mug_solid(radius, height, wall, bottom, handle_radius, handle_thickness, sections).center_mass
+    return [p - shift for p in pieces]
