@@ -70,7 +70,7 @@ EXIT_INTERNAL = 3
 EXIT_INTERRUPTED = 130
 EXIT_BROKEN_PIPE = 128 + 13   # as a process killed by SIGPIPE: the reader of stdout went away
 
-DEMO_PROBLEM = builtin_problem("box_shift")   # package data (regrasp_casadi.problems)
+DEMO_PROBLEM = builtin_problem("box_rotate")   # package data (regrasp_casadi.problems)
 # the benchmark scripts are not package data: `regrasp bench` needs a source checkout
 BENCH_SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "paper_objects.py"
 
@@ -344,8 +344,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _demo_problem():
-    """The built-in problem (problems/box_shift.yaml: the certified planner solves it with the sd method),
-    or one generated in memory if it is missing."""
+    """The built-in problem (problems/box_rotate.yaml), or one generated in memory if it is missing."""
     from regrasp_casadi.problem import RegraspProblem
 
     if DEMO_PROBLEM.is_file():
@@ -365,10 +364,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out_dir = check_output("--out-dir", args.out_dir, folder=True)
     problem = _demo_problem()
     out_dir.mkdir(parents=True, exist_ok=True)
-    print(f"demo: regrasp of {problem.obj.name!r} ({problem.name}) with the {args.method} method")
+    print(f"demo: regrasp of {problem.obj.name!r} ({problem.name}) with the {args.method} method, "
+          f"stability {args.stability!r}")
     t0 = time.perf_counter()
     progress = progress_enabled(args)
-    plan = _run_plan(problem, args.method, None, progress)
+    plan = _run_plan(problem, args.method, None, progress, args.stability)
     code = _finish_plan(plan, problem.hand, problem.obj, out_dir / "plan.json", out_dir / "replay.html",
                         time.perf_counter() - t0, progress, speed=args.speed)
     print(f"open {out_dir / 'replay.html'} in a browser to watch the regrasp")
@@ -517,8 +517,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp = add("demo", "plan, verify and replay a regrasp on the built-in box problem")
     sp.add_argument("--out-dir", default=".", metavar="DIR",
                     help="folder for plan.json and replay.html (default: the current directory)")
-    sp.add_argument("--method", choices=("svd", "sd"), default="sd",
-                    help="in-grasp objective (sd: the one that solves the built-in problem)")
+    sp.add_argument("--method", choices=("svd", "sd"), default="svd", help="in-grasp objective")
+    sp.add_argument("--stability", choices=("force_closure", "gravity", "none"), default="none",
+                    help="certificate every step must have; the demo runs the paper's planner (none): the "
+                         "certified one (force_closure) stalls on this problem, see the README's limitations")
     _add_speed(sp)
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
     sp.set_defaults(func=cmd_demo)

@@ -48,14 +48,14 @@ def test_serial_is_plan_regrasp(serial):
     assert [(r.problem, r.method) for r in serial] == [
         ("box_rotate", "svd"), ("box_rotate", "sd"), ("box_shift", "svd"), ("box_shift", "sd")]
     problem = RegraspProblem.load(PROBLEMS[1])
-    direct = plan_regrasp(problem.grasp0, problem.grasp_goal, method="sd")
-    got = serial[3]
-    assert got.plan.status == direct.status == "converged"
+    direct = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd")
+    got = serial[2]
+    assert got.plan.status == direct.status  # "stalled" with the certified planner (measured)
     assert got.plan.iterations == direct.iterations
     assert np.array_equal(got.plan.steps[-1].q, direct.steps[-1].q)
     assert got.verified is verify(direct, problem.hand, problem.obj).ok is True
     assert got.verify_summary.startswith("verify: OK")
-    assert all(r.verified for r in serial)  # the others stall with the certified planner (measured)
+    assert all(r.verified for r in serial)  # converged or not, every plan verifies
 
 
 def test_process_backend_is_serial(serial):
@@ -81,12 +81,12 @@ def test_ray_backend_is_serial(serial):
 
 def test_an_exception_is_recorded_and_the_others_plan(tmp_path):
     missing = tmp_path / "missing.yaml"
-    results = plan_many([missing, PROBLEMS[1]], backend="process", workers=2, methods=("sd",), progress=False)
+    results = plan_many([missing, PROBLEMS[1]], backend="process", workers=2, progress=False)
     bad, good = results
     assert bad.plan is None and bad.status == "error" and not bad.ok
     assert bad.error.startswith("ProblemFileError:") and "missing.yaml" in bad.error
     assert bad.problem == "missing" and bad.index == 0
-    assert good.error is None and good.ok and good.method == "sd"
+    assert good.error is None and good.plan is not None and good.verified and good.method == "svd"
 
 
 def test_nlps_are_reused_across_problems_of_one_object(monkeypatch):

@@ -24,7 +24,7 @@ HELP_NAMES = {
     "view": ["PLAN.json", "--html"],
     "grasps": ["MESH_OR_PROBLEM", "--n", "--seed", "--out"],
     "bench": ["ARGS"],
-    "demo": ["--out-dir", "--method"],
+    "demo": ["--out-dir", "--method", "--stability"],
 }
 
 
@@ -250,7 +250,7 @@ def test_demo_end_to_end(tmp_path, capsys):
     plan = Plan.load(tmp_path / "plan.json")
     assert plan.status == "converged" and verify(plan).ok
     assert np.max(plan.steps[-1].contact_error) <= plan.options["zeta"]
-    assert "(box_shift)" in out and "verify: OK" in out
+    assert "(box_rotate)" in out and "verify: OK" in out
     assert "MeshCat.Viewer" in (tmp_path / "replay.html").read_text(encoding="utf-8")
     assert 3 <= len(out.strip().splitlines()) <= 10
 

@@ -95,7 +95,7 @@ def test_wheel_installs_and_runs_the_demo(tmp_path):
 
     r = _run([venv / "bin" / "regrasp", "demo", "--out-dir", "out", "--no-progress"], cwd=work)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "(box_shift)" in r.stdout  # the shipped problem, not the in-memory fallback
+    assert "(box_rotate)" in r.stdout  # the shipped problem, not the in-memory fallback
     plan = json.loads((work / "out" / "plan.json").read_text())
     assert plan["hand_spec"] == {"model": "allegro_right"}
     r = _run([venv / "bin" / "regrasp", "verify", "out/plan.json"], cwd=work)

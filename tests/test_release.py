@@ -416,7 +416,7 @@ def test_grasp_generation_reports_progress(hand):
 @pytest.mark.parametrize(("command", "defaults"), [
     ("plan", ["(default: svd)", "(default: plan.json)", "(default: 127.0.0.1)", "(default: 50"]),
     ("grasps", ["(default: 1)", "(default: 0)", "(default: 1.0)"]),
-    ("demo", ["(default: sd)", "(default: the current directory)"]),
+    ("demo", ["(default: svd)", "(default: none)", "(default: the current directory)"]),
 ])
 def test_help_shows_defaults(command, defaults, capsys):
     assert cli.main([command, "--help"]) == 0
