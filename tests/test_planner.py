@@ -29,12 +29,12 @@ def box():
     return RegraspProblem.load(BOX_PROBLEM)
 
 
-CERTIFIED_CONVERGE = {("box_shift", "sd")}
-"""The shipped problems the certified planner (the default, stability "force_closure") solves (measured,
-benchmarks/regression.py --no-ycb). Since a sliding finger drags the object with kinetic friction in
-its certificate, the thumb can no longer slide against three fingers on the opposite face, and the
-other plans stop before every contact is within ζ (stalled, or a reposing that brings nothing: status
-"solver_failure"), with every step certified."""
+CERTIFIED_CONVERGE: set[tuple[str, str]] = set()
+"""The shipped problems the certified planner (the default, stability "force_closure") solves: none
+(measured, benchmarks/stability.py, 2026-12-02). Since a sliding finger drags the object with kinetic
+friction in its certificate, the thumb can no longer slide against three fingers on the opposite face,
+and every plan stops before every contact is within ζ (stalled, or a reposing that brings nothing:
+status "solver_failure"), with every step certified."""
 
 KNOWN_MOTION_FAILURES: dict[tuple[str, str], str] = {}
 """Plans whose only violations are verify's sampled checks between the steps (`motion_*`; measured). None
