@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from regrasp_casadi.finger_gait import FingerGaitResult
     from regrasp_casadi.planner import _Run
 
-__all__ = ["certified_round", "search_score", "slide_path_error"]
+__all__ = ["certified_round", "accept_gait", "search_score", "slide_path_error"]
 
 _log = logging.getLogger(__name__)
 
@@ -165,14 +165,21 @@ def _gait(run: _Run, finger: str, cert: Certificate, todo: list[str]) -> None:
             first = res
             break
         eta *= 0.5
-    if first is None:
-        return
-    bad, path = run.unrealisable(first.q, run.T_palm_object, "gait", finger)
-    if bad:  # e.g. its touch-down into another finger: the finger stays
+    if first is not None:
+        accept_gait(run, finger, first, cert)
+
+
+def accept_gait(run: _Run, finger: str, res, certificate: Certificate | None = None) -> bool:
+    """Take OPT1's result `res` (`.q`, `.status`, `.solve_time`) as a gait step of `finger` unless its
+    path fails its checks (`_Run.unrealisable`, e.g. a touch-down into another finger: the finger then
+    stays, the reason goes to `run.failures`); True when taken. The paper's rounds use it too."""
+    bad, path = run.unrealisable(res.q, run.T_palm_object, "gait", finger)
+    if bad:
         run.failures.append(f"gait of {finger} at step {len(run.steps)} refused: {bad}")
-        return
-    run.q = first.q
-    run.add_step("gait", finger, first.status, first.solve_time, cert, path)
+        return False
+    run.q = res.q
+    run.add_step("gait", finger, res.status, res.solve_time, certificate, path)
+    return True
 
 
 def _support_target(run: _Run, finger: str, sliders: list[str]) -> NDArray | None:

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.certificates import GRAVITY, Certificate
-from regrasp_casadi.certified_round import certified_round
+from regrasp_casadi.certified_round import accept_gait, certified_round
 from regrasp_casadi.constants import ZETA
 from regrasp_casadi.final_moves import FinalMoves, decide_status, pose_distance, run_final_moves
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
@@ -381,14 +381,8 @@ class _Run:
                 _log.debug("%s; the finger stays", self.failures[-1])
                 continue
             moved = np.linalg.norm(self.hand.tip_positions(res.q)[r] - self.hand.tip_positions(self.q)[r])
-            if moved < 1e-5:
-                continue
-            bad, path = self.unrealisable(res.q, self.T_palm_object, "gait", finger)
-            if bad:  # e.g. its touch-down into another finger: the finger stays
-                self.failures.append(f"gait of {finger} at step {len(self.steps)} refused: {bad}")
-                continue
-            self.q = res.q
-            self.add_step("gait", finger, res.status, res.solve_time, None, path)
+            if moved >= 1e-5:
+                accept_gait(self, finger, res)  # unless its path fails its checks
 
     def _most_stable_gait(self, todo: list[str]) -> str:
         """Remove and return the finger of `todo` whose lift leaves the best-held grasp."""
