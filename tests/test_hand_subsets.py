@@ -54,7 +54,8 @@ def test_fingers_that_the_model_does_not_have_are_an_error(tmp_path, fingers):
 @pytest.mark.slow
 def test_a_three_finger_regrasp_plans_and_verifies(tmp_path):
     problem = RegraspProblem.load(_write(tmp_path, _three_finger_doc()))
-    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, max_iters=3, trajectories=False)
+    # with the steps' paths: verify samples the motion, and straight joint lines would slip (its rows)
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, max_iters=3)
     assert len(plan.steps) > 1 and plan.fingers == tuple(HOLD)
     report = verify(plan, problem.hand, problem.obj)
     assert report.ok, report.summary()

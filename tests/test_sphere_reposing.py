@@ -4,7 +4,6 @@ pose while the contacts converge (`in_grasp.svd_target`'s goal pull on round obj
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -103,16 +102,12 @@ def test_a_rotation_about_the_palm_y_axis_reaches_the_target(problem, svd_nlp):
 
 @pytest.mark.slow
 def test_the_paper_planner_reaches_the_desired_pose_on_the_sphere(problem):
-    """The paper planner (stability "none", SVD reposings): with the paper's target (goal_pull 0) the
-    contacts converge while the sphere is carried more than 30° from the desired pose; with the round
-    objects' goal pull the plan converges, verifies, and its last object pose is within 2° (scipy) and
-    2 mm of the desired one."""
+    """The paper planner (stability "none", SVD reposings) with the round objects' goal pull converges,
+    verifies, and its last object pose is within 2° (scipy) and 2 mm of the desired one. (On bbff089 the
+    paper's target, goal_pull 0, carried the sphere 101° away on this pair; since gaits whose path fails
+    its checks are refused, it converges on this pair too, 0.10° away: measured, so not asserted.)"""
     options = PlannerOptions(method="svd", stability="none")
-    paper = replace(options, in_grasp=replace(options.in_grasp, goal_pull=0.0))
-    drift = plan_regrasp(problem.grasp0, problem.grasp_goal, options=paper)
     T_goal = np.asarray(problem.grasp_goal.T_palm_object, float)
-    assert _angle(drift.steps[-1].T_palm_object[:3, :3], T_goal[:3, :3]) > np.radians(30.0)
-    assert drift.status != "converged"
     plan = plan_regrasp(problem.grasp0, problem.grasp_goal, options=options)
     assert plan.status == "converged", plan.status_detail
     assert verify(plan).ok
