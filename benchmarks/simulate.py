@@ -10,7 +10,9 @@ the paper's planner; "force_closure": the certified planner of issue 14, whose e
 set in force closure; "gravity": one plan per condition, certified to hold the object's weight in that
 condition's gravity, "force_closure" for "off"); each is judged by `verify` (its own tolerances).
 Executed closed loop on the object's pose (`SimOptions.feedback`, default; ``--feedback none``: open
-loop). ``--workers N`` plans and executes N (problem, stability, method) jobs in parallel. Each plan is executed in four
+loop). ``--workers N`` plans and executes N (problem, stability, method) jobs in parallel. ``--mu`` and
+``--min-margin`` set the certified planner's friction and least force-closure margin (a force reserve:
+`HoldingOptions.mu`, `min_margin`). Each plan is executed in four
 conditions (gravity in the palm frame, m/s²; the Allegro palm faces +x, its fingers point along +z):
 off (0, 0, 0), fingers up (0, 0, −9.81), palm up (−9.81, 0, 0), palm down (+9.81, 0, 0). Object mass:
 the problem's `object.mass`, else the published mass of a YCB object (`certificates.YCB_MASSES`), else
@@ -109,13 +111,13 @@ def problem_files(which: str, pairs: int, problem_dir: pathlib.Path) -> list[pat
 
 
 def make_plan(problem, method: str, stability: str, gait_order: str | None, gravity_palm=None,
-              mass: float | None = None):
+              mass: float | None = None, holding: dict | None = None):
     """(plan, verified, plan wall s) of `plan_regrasp`, with `stability` when not "none" (for "gravity":
-    `gravity_palm` m/s² and the object's `mass` kg)."""
+    `gravity_palm` m/s² and the object's `mass` kg; `holding`: HoldingOptions overrides, e.g. mu)."""
     from regrasp_casadi.planner import PlannerOptions, plan_regrasp
     from regrasp_casadi.verify import verify
 
-    kw = {"method": method}
+    kw = {"method": method, **(holding if stability != "none" and holding else {})}
     if stability == "gravity":
         kw |= {"gravity_palm": gravity_palm, **({"object_mass": mass} if mass else {})}
     if gait_order:
@@ -263,6 +265,8 @@ def _args(argv):
     ap.add_argument("--feedback", choices=("object_pose", "none"), default="object_pose",
                     help="SimOptions.feedback: closed loop on the object pose (default) or open loop")
     ap.add_argument("--workers", type=int, default=1, help="plans planned and executed in parallel")
+    ap.add_argument("--mu", type=float, default=None, help="the certified planner's friction (HoldingOptions.mu)")
+    ap.add_argument("--min-margin", type=float, default=None, help="its least force-closure margin ε")
     ap.add_argument("--out", type=pathlib.Path, default=None, help="JSON file for the records")
     ap.add_argument("--plot", action="store_true", help="deviation over time, next to --out (.png)")
     return ap.parse_args(argv)
@@ -283,7 +287,9 @@ def _job(job: tuple) -> tuple[list[dict], list[dict], list[dict]]:
         runs = [("force_closure" if c == "off" else "gravity", [c]) for c in args.conditions]
     heads, records, step_records = [], [], []
     for kind, conditions in runs:
-        plan, verified, plan_s = make_plan(problem, method, kind, args.gait_order, GRAVITY[conditions[0]], mass)
+        holding = {k: v for k, v in (("mu", args.mu), ("min_margin", args.min_margin)) if v is not None}
+        plan, verified, plan_s = make_plan(problem, method, kind, args.gait_order, GRAVITY[conditions[0]], mass,
+                                           holding)
         head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,
                     verified=verified, plan_wall_s=plan_s, feedback=args.feedback, certificate=kind)
         heads.append(head | {"steps": len(plan.steps)})
