@@ -11,6 +11,7 @@ fingers (`method="sd"`).
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
@@ -377,10 +378,10 @@ class InGraspNLP:
         """Multipliers of the last successful solve, for the next one."""
         self._blank = self._placeholder_offsets()
 
-    @property
+    @functools.cached_property
     def goal_pull(self) -> float:
         """α of `svd_target` for this object: `InGraspOptions.goal_pull`, or when None `ROUND_GOAL_PULL` on a
-        round object (`is_round`) and 0 (the paper) on any other."""
+        round object (`is_round`) and 0 (the paper) on any other (decided once per NLP, not per reposing)."""
         pull = self.options.goal_pull
         return float(pull if pull is not None else ROUND_GOAL_PULL if is_round(self.obj) else 0.0)
 

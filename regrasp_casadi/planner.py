@@ -30,7 +30,7 @@ from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.solver import NLPCache
 from regrasp_casadi.stability import holding_quality, torque_reference
-from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories, step_path
+from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories, motion_context, step_path
 
 if TYPE_CHECKING:
     from regrasp_casadi.grasp import Grasp
@@ -254,8 +254,8 @@ class _Run:
         self.staging_failed: dict[str, int] = {}
         """Pinned fingers whose staging search found nothing → the iteration it was tried."""
         self.motion = None if not options.trajectories else _trajectory_context(self.hand, self.obj, options)
-        """The trajectories' context (`trajectory._Context`) of the reposing paths computed before a move
-        is accepted (`unrealisable`); None without trajectories."""
+        """The trajectories' context (`trajectory.motion_context`) of the paths computed before a step is
+        accepted (`unrealisable`); None without trajectories."""
         self.gait = options.gait or gait_pattern(self.hand, step.contacts_object, self.goal_contacts)
         self.gait_nlps = {f: self.gait_nlp(f) for f in self.gait}
         self.svd_nlp = self.in_grasp_nlp("svd")  # SVD reposing, stall escape and final moves
@@ -543,12 +543,10 @@ def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_star
 
 
 def _trajectory_context(hand: Hand, obj, options: PlannerOptions):
-    """The trajectories' context of a run (`trajectory._Context`, the options `_make_plan` attaches the
-    paths with)."""
-    from regrasp_casadi.trajectory import _Context
-
+    """The trajectories' context of a run (`trajectory.motion_context`, with the options `_make_plan`
+    attaches the paths with)."""
     gait = options.finger_gait
-    return _Context(hand, obj, TrajectoryOptions(beta=gait.beta, self_clearance=gait.self_clearance))
+    return motion_context(hand, obj, TrajectoryOptions(beta=gait.beta, self_clearance=gait.self_clearance))
 
 
 def _stability_problem(options: PlannerOptions) -> str:

@@ -74,10 +74,10 @@ class ObjectPoseFeedback:
         """
         for m, finger in enumerate(self.fingers):
             w = float(holding[m])
-            p_tip, J = self._tip(data, finger)
             if w <= 0.0:
                 self.offset[m] *= max(0.0, 1.0 - self.gain * dt)
                 continue
+            p_tip, J = self._tip(data, finger)
             delta = rigid_tip_corrections(T_plan, T_sim, p_tip[None])[0]
             step = J.T @ np.linalg.solve(J @ J.T + _DAMPING**2 * np.eye(3), delta)
             self.offset[m] += self.gain * dt * w * step

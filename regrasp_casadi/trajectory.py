@@ -56,7 +56,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.plan import Plan, PlanStep
 
-__all__ = ["TrajectoryOptions", "step_path", "plan_trajectories", "attach_trajectories"]
+__all__ = ["TrajectoryOptions", "motion_context", "step_path", "plan_trajectories", "attach_trajectories"]
 
 _log = logging.getLogger(__name__)
 
@@ -494,6 +494,12 @@ def _gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
 
 
 # --------------------------------------------------------------------------------------------- public
+def motion_context(hand: Hand, obj: ObjectModel, options: TrajectoryOptions | None = None) -> _Context:
+    """The context the paths of one plan share (its IK, knots, checks and their caches), for `step_path`;
+    `options` default: `TrajectoryOptions()`."""
+    return _Context(hand, obj, options or TrajectoryOptions())
+
+
 def step_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath | None:
     """The path of step b from step a: lift-off / transit / touch-down for a gait, on the surface for a
     slide (`slide_trajectory.slide_path`), the reposing path for a repose or final move
@@ -522,7 +528,7 @@ def plan_trajectories(plan_steps: Sequence[PlanStep], hand: Hand, obj: ObjectMod
         hand, obj: the models the plan was made with.
         options: `TrajectoryOptions` (default: issue 15's values).
     """
-    ctx = _Context(hand, obj, options or TrajectoryOptions())
+    ctx = motion_context(hand, obj, options)
     paths: list[StepPath | None] = [None]
     for a, b in zip(plan_steps[:-1], plan_steps[1:], strict=True):
         # a path computed already (the planner's checked moves, `_Run.unrealisable`) is kept

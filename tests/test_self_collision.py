@@ -255,7 +255,7 @@ def test_the_floor_does_not_ratchet_down_by_the_solver_tolerance(hand):
     its own value (+ `HOLD_TOL`): it may not get worse."""
     from regrasp_casadi.self_collision import HOLD_TOL, SelfCollisionConstraint
 
-    q = np.asarray(hand.q_home, float) if hasattr(hand, "q_home") else 0.5 * (hand.q_lower + hand.q_upper)
+    q = hand.q_mid()
     probe = SelfCollisionConstraint.build(hand, None, 0.001)
     v = probe.values(q)
     j = int(np.argmin(v))
