@@ -53,6 +53,9 @@ class ExactDistance:
         self._kdtree = cKDTree(m.vertices)
         self._rtree = m.triangles_tree
         self._triangles_mm = np.array(m.triangles)
+        self._centroids_mm = self._triangles_mm.mean(axis=1)
+        spokes = self._triangles_mm - self._centroids_mm[:, None]
+        self._radii_mm = np.max(np.linalg.norm(spokes, axis=2), axis=1)
         self._edge_normals = edge_n
         self._vertex_normals = vert_n
 
@@ -60,15 +63,21 @@ class ExactDistance:
         """Closest points (n, 3) mm, their triangle ids (n,) and distances (n,) mm of points (n, 3) mm.
 
         Same algorithm as trimesh.proximity.closest_point (candidate triangles from the box reaching the
-        nearest vertex), with the k-d tree built once rather than on every call.
+        nearest vertex), with the k-d tree built once rather than on every call, and the candidates pruned
+        by their bounding spheres: a triangle whose sphere (centroid, largest vertex distance) lies
+        farther than the nearest vertex cannot hold the closest point (the nearest vertex bounds the
+        distance from above), so only exact distances that can win are computed.
         """
         tris = self._triangles_mm
         n_pts = len(p_mm)
         r = self._kdtree.query(p_mm)[0][:, None] + 1e-8
         ids, counts = self._rtree.intersection_v(p_mm - r, p_mm + r)
         ids = np.asarray(ids, dtype=np.int64)
-        counts = np.asarray(counts, dtype=np.int64)
-        owner = np.repeat(np.arange(n_pts), counts)
+        owner = np.repeat(np.arange(n_pts), np.asarray(counts, dtype=np.int64))
+        gap = self._centroids_mm[ids] - p_mm[owner]
+        keep = np.sqrt(np.einsum("ij,ij->i", gap, gap)) - self._radii_mm[ids] <= r[owner, 0]
+        ids, owner = ids[keep], owner[keep]
+        counts = np.bincount(owner, minlength=n_pts)
         cand = trimesh.triangles.closest_point(tris[ids], p_mm[owner])
         d2 = np.einsum("ij,ij->i", p_mm[owner] - cand, p_mm[owner] - cand)
         best = np.lexsort((d2, owner))[np.concatenate([[0], np.cumsum(counts)[:-1]])]

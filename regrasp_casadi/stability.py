@@ -17,8 +17,9 @@ from numpy.typing import NDArray
 from regrasp_casadi.constants import MU
 
 __all__ = [
-    "FRICTION_EDGES", "contact_mu", "sliding_normal", "tangent_basis", "primitive_wrenches", "torque_scale",
-    "force_closure_quality", "ferrari_canny", "contact_normals", "holding_quality", "torque_reference",
+    "FRICTION_EDGES", "contact_mu", "sliding_normal", "tangent_basis", "tangent_bases", "primitive_wrenches",
+    "torque_scale", "force_closure_quality", "ferrari_canny", "contact_normals", "holding_quality",
+    "torque_reference",
 ]
 
 FRICTION_EDGES = 8
@@ -58,10 +59,28 @@ def sliding_normal(normal: NDArray[np.float64], direction: NDArray[np.float64] |
 
 def tangent_basis(normal: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Two unit tangents (t1, t2) (3,) with (n, t1, t2) orthonormal, for a unit normal n (3,)."""
-    a = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    t1 = np.cross(normal, a)
-    t1 /= np.linalg.norm(t1)
-    return t1, np.cross(normal, t1)
+    t = tangent_bases(np.asarray(normal, float).reshape(1, 3))[0]
+    return t[0], t[1]
+
+
+def tangent_bases(normals: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Unit tangents (m, 2, 3): rows t1, t2 with (n, t1, t2) orthonormal, for unit normals n (m, 3);
+    t1 = n × a / |n × a| with a = x̂ (ŷ where |n_x| ≥ 0.9), t2 = n × t1."""
+    n = np.asarray(normals, float).reshape(-1, 3)
+    a = np.zeros_like(n)
+    a[np.abs(n[:, 0]) < 0.9, 0] = 1.0
+    a[np.abs(n[:, 0]) >= 0.9, 1] = 1.0
+    t1 = _cross(n, a)
+    t1 /= np.array([[np.linalg.norm(row)] for row in t1]).reshape(-1, 1)  # per row: as a (3,) vector's norm
+    return np.stack([t1, _cross(n, t1)], axis=1)
+
+
+def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """a × b over the last axis (3), broadcast; the same products and differences as `np.cross`, without
+    its overhead (this runs thousands of times per plan)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def primitive_wrenches(
@@ -84,9 +103,9 @@ def primitive_wrenches(
     mu_i = contact_mu(mu, len(c))
     phi = 2.0 * np.pi * np.arange(n_edges) / n_edges
     cos, sin = np.cos(phi)[None, :, None], np.sin(phi)[None, :, None]
-    t = np.array([tangent_basis(ni) for ni in n]).reshape(-1, 2, 3)  # (m, 2, 3)
+    t = tangent_bases(n)  # (m, 2, 3)
     f = -n[:, None, :] + mu_i[:, None, None] * (cos * t[:, None, 0, :] + sin * t[:, None, 1, :])  # (m, e, 3)
-    torque = np.cross(c[:, None, :] - center, f) / length
+    torque = _cross(c[:, None, :] - center, f) / length
     keep = np.ones((len(c), n_edges), bool)
     keep[mu_i == 0, 1:] = False  # a frictionless contact: the one force −n_i
     return np.concatenate([f, torque], axis=2)[keep].reshape(-1, 6)

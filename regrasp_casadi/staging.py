@@ -173,12 +173,13 @@ def find_staging(run: _Run, finger: str, samples: int = 600, sigma: tuple[float,
     cand = (1 - lam) * tips_now + lam * run.goal_tips + spread * rng.normal(0.0, 1.0, (samples, m, 3))
     moves = rng.random((samples, m)) < 0.6
     moves[:, i] = False
+    tips_s, c_s, n_s = (x.reshape(samples, m, 3) for x in _surface(run, cand.reshape(-1, 3)))  # one query
     found = []
     for k in range(samples):
         moved = np.flatnonzero(moves[k])
         if moved.size == 0:
             continue
-        tips_k, c_k, n_k = _surface(run, cand[k, moved])
+        tips_k, c_k, n_k = tips_s[k, moved], c_s[k, moved], n_s[k, moved]
         if np.max(np.linalg.norm(tips_k - tips_now[moved], axis=1)) > max_move:
             continue
         c, n = contacts.copy(), normals.copy()
