@@ -163,11 +163,13 @@ def ferrari_canny(W: NDArray[np.float64]) -> float:
 
     if len(W) < 7 or np.linalg.matrix_rank(W - W.mean(axis=0), tol=1e-9) < 6:
         return 0.0
-    try:
-        hull = ConvexHull(W)
-    except QhullError:
-        return 0.0
-    return float(-np.max(hull.equations[:, -1]))
+    for options in ("Q0", None):  # unmerged facets first (≈ 3× faster), Qhull's default merging on error
+        try:
+            hull = ConvexHull(W, qhull_options=options)
+        except QhullError:
+            continue
+        return float(-np.max(hull.equations[:, -1]))
+    return 0.0
 
 
 def contact_normals(contacts: NDArray[np.float64], tip_centers: NDArray[np.float64]) -> NDArray[np.float64]:
