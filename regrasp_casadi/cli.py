@@ -48,7 +48,9 @@ from regrasp_casadi.cli_tools import (
     found_progress,
     non_negative_float,
     non_negative_int,
+    plan_gravity_palm,
     plan_progress,
+    plan_stability,
     positive_float,
     positive_int,
     progress_bar,
@@ -86,7 +88,7 @@ _EPILOG = """exit codes:
 
 # ---------------------------------------------------------------------------------------------- helpers
 def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool,
-              stability: str | None = None) -> Plan:
+              stability: str | None = None, gravity_palm: tuple | None = None) -> Plan:
     from regrasp_casadi.planner import plan_regrasp
 
     kwargs = {"method": method}
@@ -94,6 +96,8 @@ def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool,
         kwargs["max_iters"] = max_iters
     if stability is not None:
         kwargs["stability"] = stability
+    if gravity_palm is not None:
+        kwargs["gravity_palm"] = plan_gravity_palm(gravity_palm, problem.grasp0)
     if getattr(problem, "object_mass", None) is not None:
         kwargs["object_mass"] = problem.object_mass
     n_max = max_iters if max_iters is not None else 50
@@ -197,10 +201,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     out, html = check_output("--out", args.out), check_output("--html", args.html)
     if args.view:
         check_host(args.host)
+    stability, gravity = plan_stability(args.stability, args.gravity)
     problem = RegraspProblem.load(args.problem)
     t0 = time.perf_counter()
     progress = progress_enabled(args)
-    plan = _run_plan(problem, args.method, args.max_iters, progress, args.stability)
+    plan = _run_plan(problem, args.method, args.max_iters, progress, stability, gravity)
     code = _finish_plan(plan, problem.hand, problem.obj, out, html, time.perf_counter() - t0, progress,
                         speed=args.speed)
     if args.view:
@@ -481,9 +486,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("problem", metavar="PROBLEM.yaml", help="regrasp problem file (YAML)")
     sp.add_argument("--method", choices=("svd", "sd"), default="svd",
                     help="in-grasp objective E_des: svd (Kabsch pose) or sd (workspace distance)")
-    sp.add_argument("--stability", choices=("force_closure", "gravity", "none"), default="force_closure",
+    sp.add_argument("--stability", choices=("force_closure", "gravity", "none"), default=None,
                     help="certificate every step must have: force closure of the holding fingers (default), "
-                         "gravity hold of the object's weight (palm -z), or none (the paper's planner)")
+                         "gravity hold of the object's weight (--gravity), or none (the paper's planner)")
+    sp.add_argument("--gravity", nargs="+", metavar="X Y Z|support",
+                    help="gravity of --stability gravity (implied), palm frame, m/s^2 (default 0 0 -9.81); "
+                         "'support': pressing the object onto the fingers opposite the thumb")
     sp.add_argument("--out", default="plan.json", metavar="PLAN.json", help="plan file to write")
     sp.add_argument("--html", metavar="REPLAY.html", help="also write a self-contained HTML replay")
     sp.add_argument("--view", action="store_true", help="open the live viewer after planning")

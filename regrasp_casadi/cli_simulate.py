@@ -1,6 +1,6 @@
 """The `regrasp simulate` subcommand: execute a plan in MuJoCo (`regrasp_casadi.simulate`).
 
-    regrasp simulate plan.json [--gravity X Y Z] [--html sim.html] [--json report.json]
+    regrasp simulate plan.json [--gravity X Y Z | --gravity plan] [--html sim.html] [--json report.json]
 
 Exit codes (`regrasp_casadi.cli`): 0 the object is held within the tolerances, 1 it is dropped or deviates,
 2 bad input (missing or unreadable plan, bad number, unwritable output).
@@ -11,10 +11,9 @@ from __future__ import annotations
 import argparse
 import functools
 import json
-import math
 from collections.abc import Callable
 
-from regrasp_casadi.cli_tools import check_output
+from regrasp_casadi.cli_tools import UserError, check_output, gravity_values
 
 __all__ = ["add_simulate_parser", "cmd_simulate"]
 
@@ -27,10 +26,12 @@ def cmd_simulate(args: argparse.Namespace, load_plan: Callable) -> int:
     dropped or deviating (bad input raises, the caller maps it to 2)."""
     from regrasp_casadi.simulate import SimOptions, simulate
 
-    gravity = tuple(args.gravity) if args.gravity else (0.0, 0.0, 0.0)
+    gravity = gravity_values("--gravity", args.gravity, ("plan",)) or (0.0, 0.0, 0.0)
     out = check_output("--json", args.json)
     html = check_output("--html", args.html)
     plan = load_plan(args.plan)
+    if gravity == "plan":
+        gravity = certified_gravity(plan, args.plan)
     report = simulate(plan, options=SimOptions(gravity_palm=gravity))
     print(report.summary())
     opts = report.options
@@ -53,15 +54,18 @@ def cmd_simulate(args: argparse.Namespace, load_plan: Callable) -> int:
     return EXIT_OK if report.held else EXIT_FAILED
 
 
-def _finite(text: str) -> float:
-    """argparse type: a finite number."""
-    try:
-        x = float(text)
-    except ValueError:
-        x = math.nan
-    if not math.isfinite(x):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return x
+def certified_gravity(plan, shown: str) -> tuple[float, float, float]:
+    """The gravity (palm frame, m/s²) `plan` was certified for (`PlannerOptions.gravity_palm` of a
+    "gravity" plan).
+
+    Raises:
+        UserError: the plan (file `shown`) was not planned with stability "gravity".
+    """
+    stability = plan.options.get("stability")
+    if stability != "gravity" or "gravity_palm" not in plan.options:
+        raise UserError(f"--gravity plan: {shown} was planned with stability {stability!r}, not 'gravity': "
+                        "give the gravity as X Y Z")
+    return tuple(float(g) for g in plan.options["gravity_palm"])
 
 
 def add_simulate_parser(add, *, load_plan: Callable) -> None:
@@ -69,8 +73,9 @@ def add_simulate_parser(add, *, load_plan: Callable) -> None:
     CLI's plan reader."""
     sp = add("simulate", "execute a plan in physics (MuJoCo) and report whether the object is held")
     sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
-    sp.add_argument("--gravity", type=_finite, nargs=3, metavar=("X", "Y", "Z"),
-                    help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81)")
+    sp.add_argument("--gravity", nargs="+", metavar="X Y Z|plan",
+                    help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81); 'plan': the "
+                         "gravity the plan was certified for (a plan of --stability gravity)")
     sp.add_argument("--html", metavar="SIM.html", help="write a self-contained replay of the simulated "
                     "motion, the planned object pose as a ghost")
     sp.add_argument("--json", metavar="REPORT.json", help="write the simulation report as JSON")

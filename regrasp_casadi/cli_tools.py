@@ -21,7 +21,8 @@ __all__ = [
     "EXIT_BAD_INPUT", "UserError", "print_error", "Parser", "HelpFormatter",
     "positive_int", "non_negative_int", "positive_float", "non_negative_float", "finite_float",
     "finite_positive_float",
-    "check_output", "check_host", "progress_enabled", "progress_bar", "plan_progress", "found_progress",
+    "gravity_values", "plan_stability", "plan_gravity_palm", "check_output", "check_host",
+    "progress_enabled", "progress_bar", "plan_progress", "found_progress",
 ]
 
 EXIT_BAD_INPUT = 2
@@ -99,6 +100,55 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefau
 
 
 # --------------------------------------------------------------------------- checks before long work
+def gravity_values(option: str, values: list[str] | None, words: tuple[str, ...]) -> tuple | str | None:
+    """A ``--gravity`` value: None (not given), one of `words` (e.g. "support"), or three finite numbers
+    (m/s², palm frame) as a tuple.
+
+    Raises:
+        UserError: naming `option`, for anything else.
+    """
+    if values is None:
+        return None
+    if len(values) == 1 and values[0] in words:
+        return values[0]
+    try:
+        g = tuple(finite_float(v) for v in values)
+    except argparse.ArgumentTypeError as exc:
+        raise UserError(f"{option}: {exc}") from None
+    if len(g) != 3:
+        raise UserError(f"{option}: expected X Y Z (m/s^2, palm frame) or one of {', '.join(words)}; "
+                        f"got {' '.join(values)}")
+    return g
+
+
+def plan_stability(stability: str | None, gravity: list[str] | None) -> tuple[str, tuple | str | None]:
+    """`regrasp plan`'s certificate and gravity from ``--stability`` and ``--gravity``: "force_closure"
+    by default, "gravity" when ``--gravity`` is given (X Y Z, or "support").
+
+    Raises:
+        UserError: ``--gravity`` with another ``--stability``, or a malformed ``--gravity``.
+    """
+    g = gravity_values("--gravity", gravity, ("support",))
+    stability = stability or ("gravity" if g is not None else "force_closure")
+    if g is not None and stability != "gravity":
+        raise UserError(f"--gravity sets the gravity certificate's direction: it needs --stability gravity, "
+                        f"not {stability}")
+    return stability, g
+
+
+def plan_gravity_palm(gravity: tuple | str, grasp0) -> tuple[float, float, float]:
+    """Gravity in the palm frame, m/s²: the given X Y Z, or for "support" the direction that presses the
+    object of `grasp0` onto the fingers opposite the thumb (`hand_orientation.supporting_gravity`,
+    printed on stderr)."""
+    if gravity != "support":
+        return tuple(float(v) for v in gravity)
+    from regrasp_casadi.hand_orientation import supporting_gravity
+
+    g = tuple(float(v) for v in supporting_gravity(grasp0))
+    print("gravity (palm frame, m/s^2): " + " ".join(f"{v:.3f}" for v in g), file=sys.stderr)
+    return g
+
+
 def check_output(option: str, value: str | os.PathLike | None, folder: bool = False) -> Path | None:
     """The path given to `option` (None stays None), checked before any long work.
 

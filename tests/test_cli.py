@@ -269,3 +269,41 @@ def test_demo_generates_a_problem_when_the_file_is_missing(tmp_path, capsys, mon
     assert plan.status == "converged"
     assert plan.object_spec["extents"] == [0.06, 0.06, 0.12]
     assert (tmp_path / "out" / "replay.html").is_file()
+
+
+@pytest.mark.parametrize(("extra", "error"), [
+    (["--gravity", "1", "2"], "expected X Y Z"),
+    (["--gravity", "up"], "expected a finite number"),
+    (["--gravity", "support", "--stability", "none"], "needs --stability gravity"),
+])
+def test_plan_gravity_bad_input(extra, error, tmp_path, capsys):
+    """``--gravity`` takes X Y Z or "support", and only with the gravity certificate; bad input exits 2
+    before any planning, naming the option."""
+    assert cli.main(["plan", str(PROBLEM), "--out", str(tmp_path / "p.json"), *extra]) == cli.EXIT_BAD_INPUT
+    line = _one_error_line(capsys.readouterr().err)
+    assert "--gravity" in line and error in line
+
+
+def test_plan_gravity_support_is_the_supporting_direction(tmp_path, capsys, monkeypatch):
+    """``--gravity support`` plans with the gravity certificate along `supporting_gravity` of the problem's
+    initial grasp (here the box's thumb face normal, reversed, in the palm frame)."""
+    import regrasp_casadi.planner as planner_mod
+    from regrasp_casadi.problem import RegraspProblem
+
+    problem = RegraspProblem.load(PROBLEM)
+    calls = []
+
+    def fake_plan(grasp0, grasp_goal, progress=None, **options):
+        calls.append(options)
+        return _plan_from_problem(problem, "converged")
+
+    monkeypatch.setattr(planner_mod, "plan_regrasp", fake_plan)
+    cli.main(["plan", str(PROBLEM), "--gravity", "support", "--out", str(tmp_path / "p.json")])
+    (options,) = calls
+    assert options["stability"] == "gravity"
+    g0 = problem.grasp0
+    thumb = list(problem.hand.fingers).index("thumb")
+    n_thumb = problem.obj.surface_normals(g0.contacts_object[thumb:thumb + 1])[0]
+    g_object = np.asarray(g0.T_palm_object)[:3, :3].T @ options["gravity_palm"]
+    np.testing.assert_allclose(g_object, -9.81 * n_thumb, atol=1e-9)
+    assert np.isclose(abs(n_thumb[0]), 1.0)  # the box's ±x face: the fingers' face is opposite (problem file)

@@ -292,6 +292,15 @@ def test_cli_simulate_exit_codes_and_json(hand, box_problem, tmp_path, capsys):
     assert "simulate: dropped" in capsys.readouterr().out
     assert cli.main(["simulate", str(tmp_path / "missing.json")]) == cli.EXIT_BAD_INPUT
     assert cli.main(["simulate", str(tmp_path / "held.json"), "--gravity", "0", "nan", "0"]) == 2
+    capsys.readouterr()
+    assert cli.main(["simulate", str(tmp_path / "held.json"), "--gravity", "plan"]) == cli.EXIT_BAD_INPUT
+    assert "not 'gravity'" in capsys.readouterr().err  # a plan not certified for gravity has none
+    certified = dataclasses.replace(held, options={**held.options, "stability": "gravity",
+                                                   "gravity_palm": [0.0, -9.81, 0.0]})
+    certified.save(tmp_path / "certified.json")
+    argv = ["simulate", str(tmp_path / "certified.json"), "--gravity", "plan", "--json", str(out)]
+    assert cli.main(argv) in (cli.EXIT_OK, cli.EXIT_FAILED)
+    assert json.loads(out.read_text())["options"]["gravity_palm"] == [0.0, -9.81, 0.0]
 
 
 def test_urdf_collision_elements_become_geoms(box_problem, tmp_path):

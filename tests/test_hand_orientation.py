@@ -1,0 +1,59 @@
+"""The hand's orientation for gravity-certified regrasps (`hand_orientation`): the opposing finger, the
+supporting gravity, and a certified plan that moves the thumb where force closure cannot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from regrasp_casadi.hand_orientation import opposing_finger, supporting_gravity
+from regrasp_casadi.problem import RegraspProblem
+
+PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
+
+
+@pytest.fixture(scope="module")
+def box_shift():
+    return RegraspProblem.load(PROBLEMS / "box_shift.yaml")
+
+
+def test_the_thumb_opposes_three_fingers_on_the_box(box_shift):
+    """box_shift's initial grasp: index, middle and ring on the box's +y face, the thumb on −y (the
+    contacts' coordinates against the box's half extent, 0.035 m)."""
+    g0 = box_shift.grasp0
+    y = np.asarray(g0.contacts_object)[:, 1]
+    np.testing.assert_allclose(np.abs(y), 0.035, atol=1e-4)
+    assert opposing_finger(g0) == "thumb"
+    assert y[list(box_shift.hand.fingers).index("thumb")] < 0 < y[:3].min()
+
+
+def test_supporting_gravity_presses_the_box_onto_the_fingers(box_shift):
+    """In the object frame the supporting gravity points along +y, into the fingers' face (their pushes,
+    along −y, carry the weight), with magnitude g; `finger` and `g` are checked."""
+    g0 = box_shift.grasp0
+    g_palm = supporting_gravity(g0, g=9.81)
+    g_object = np.asarray(g0.T_palm_object)[:3, :3].T @ g_palm
+    np.testing.assert_allclose(g_object, [0.0, 9.81, 0.0], atol=1e-9)
+    with pytest.raises(ValueError, match="pinky"):
+        supporting_gravity(g0, finger="pinky")
+    with pytest.raises(ValueError, match="positive"):
+        supporting_gravity(g0, g=0.0)
+
+
+def test_supporting_gravity_lets_the_certified_planner_move_the_thumb(box_shift):
+    """With force closure the thumb cannot leave its contact (it alone opposes the other three); with the
+    gravity certificate and the supporting gravity, the plan converges, `verify` (its own tolerances and
+    certificate) passes, and the thumb reaches its goal contact 31 mm away."""
+    from regrasp_casadi.planner import plan_regrasp
+    from regrasp_casadi.verify import verify
+
+    g0, goal = box_shift.grasp0, box_shift.grasp_goal
+    thumb = list(box_shift.hand.fingers).index("thumb")
+    start = float(np.linalg.norm(g0.contacts_object[thumb] - goal.contacts_object[thumb]))
+    plan = plan_regrasp(g0, goal, stability="gravity", gravity_palm=tuple(supporting_gravity(g0)),
+                        object_mass=box_shift.object_mass)
+    assert plan.status == "converged", plan.status_detail
+    assert verify(plan).ok
+    assert start > 0.03 and plan.steps[-1].contact_error[thumb] <= plan.options["zeta"]
