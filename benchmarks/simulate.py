@@ -14,7 +14,10 @@ loop). ``--workers N`` plans and executes N (problem, stability, method) jobs in
 ``--min-margin`` set the certified planner's friction and least force-closure margin (a force reserve:
 `HoldingOptions.mu`, `min_margin`). Each plan is executed in four
 conditions (gravity in the palm frame, m/s²; the Allegro palm faces +x, its fingers point along +z):
-off (0, 0, 0), fingers up (0, 0, −9.81), palm up (−9.81, 0, 0), palm down (+9.81, 0, 0). Object mass:
+off (0, 0, 0), fingers up (0, 0, −9.81), palm up (−9.81, 0, 0), palm down (+9.81, 0, 0), and on request
+"support": per problem, gravity pressing the object onto the fingers opposite the thumb in the initial
+grasp (`hand_orientation.supporting_gravity`; with ``--stability gravity`` the plan is certified for it).
+Object mass:
 the problem's `object.mass`, else the published mass of a YCB object (`certificates.YCB_MASSES`), else
 the mesh volume × 500 kg/m³.
 A case is *held* when `simulate` says "held": never more than 2 cm from the plan, at least two fingers
@@ -49,7 +52,19 @@ HERE = pathlib.Path(__file__).resolve().parent
 REPO = HERE.parent
 sys.path.insert(0, str(HERE))
 GRAVITY = {"off": (0.0, 0.0, 0.0), "fingers_up": (0.0, 0.0, -9.81), "palm_up": (-9.81, 0.0, 0.0),
-           "palm_down": (9.81, 0.0, 0.0)}
+           "palm_down": (9.81, 0.0, 0.0), "support": None}
+"""Gravity of each condition, palm frame, m/s²; "support" depends on the problem (`condition_gravity`)."""
+
+
+def condition_gravity(cond: str, problem) -> tuple[float, float, float]:
+    """The gravity of condition `cond` for `problem`, palm frame, m/s²: the fixed ones, or for "support"
+    the direction that presses the object onto the fingers opposite the thumb in the initial grasp
+    (`hand_orientation.supporting_gravity`)."""
+    if GRAVITY[cond] is not None:
+        return GRAVITY[cond]
+    from regrasp_casadi.hand_orientation import supporting_gravity
+
+    return tuple(float(g) for g in supporting_gravity(problem.grasp0))
 SERIES_DT = 0.05  # s, the recorded deviation series
 
 
@@ -141,7 +156,8 @@ def run_plan(plan, problem, conditions, opts_kw: dict) -> list[dict]:
     out = []
     for cond in conditions:
         t0 = time.perf_counter()
-        rep = simulate(plan, problem.hand, problem.obj, SimOptions(gravity_palm=GRAVITY[cond], **opts_kw))
+        rep = simulate(plan, problem.hand, problem.obj,
+                       SimOptions(gravity_palm=condition_gravity(cond, problem), **opts_kw))
         last, s = rep.steps[-1], rep.series
         every = max(1, int(round(SERIES_DT / float(np.median(np.diff(s["t"]))))))
         out.append(dict(
@@ -167,7 +183,8 @@ def run_steps(plan, problem, conditions, opts_kw: dict) -> list[dict]:
         sub = dataclasses.replace(plan, steps=(first, plan.steps[i]))
         for cond in conditions:
             kw = {**opts_kw, "hold_time": 0.3}
-            rep = simulate(sub, problem.hand, problem.obj, SimOptions(gravity_palm=GRAVITY[cond], **kw))
+            rep = simulate(sub, problem.hand, problem.obj,
+                           SimOptions(gravity_palm=condition_gravity(cond, problem), **kw))
             out.append(dict(step=i, kind=step_class(plan, i, open_steps), finger=plan.steps[i].finger,
                             condition=cond, status=rep.status, settle_mm=rep.steps[0].deviation_mm,
                             mm=rep.steps[1].deviation_mm, deg=rep.steps[1].deviation_deg,
@@ -258,7 +275,8 @@ def _args(argv):
     ap.add_argument("--stability", nargs="+", default=["none"],
                     help="PlannerOptions.stability settings to compare (e.g. none force_closure gravity; "
                          "gravity: one plan per condition, certified for that condition's gravity)")
-    ap.add_argument("--conditions", nargs="+", choices=tuple(GRAVITY), default=list(GRAVITY))
+    ap.add_argument("--conditions", nargs="+", choices=tuple(GRAVITY),
+                    default=[c for c in GRAVITY if c != "support"])
     ap.add_argument("--grip", choices=("balanced", "squeeze"), default="balanced")
     ap.add_argument("--gait-order", default=None, help="planner gait_order (default: the planner's)")
     ap.add_argument("--per-step", action="store_true", help="every step alone, held % per step kind")
@@ -288,8 +306,8 @@ def _job(job: tuple) -> tuple[list[dict], list[dict], list[dict]]:
     heads, records, step_records = [], [], []
     for kind, conditions in runs:
         holding = {k: v for k, v in (("mu", args.mu), ("min_margin", args.min_margin)) if v is not None}
-        plan, verified, plan_s = make_plan(problem, method, kind, args.gait_order, GRAVITY[conditions[0]], mass,
-                                           holding)
+        plan, verified, plan_s = make_plan(problem, method, kind, args.gait_order,
+                                           condition_gravity(conditions[0], problem), mass, holding)
         head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,
                     verified=verified, plan_wall_s=plan_s, feedback=args.feedback, certificate=kind)
         heads.append(head | {"steps": len(plan.steps)})

@@ -16,6 +16,9 @@ load falls on each setting alike. Measures and records; asserts nothing.
     python benchmarks/stability.py --workers 2                         # everything, results JSON
     python benchmarks/stability.py --no-ycb --stabilities none force_closure --out /tmp/s.json
     python benchmarks/stability.py --gait-orders pattern search       # also the searched gait order
+    python benchmarks/stability.py --stabilities gravity_support      # gravity certificate, the hand
+        # oriented so that gravity presses the object onto the fingers opposite the thumb
+        # (`hand_orientation.supporting_gravity`)
 
 Measured (results/stability.json): commit 49a590d (the staging last resort, reposing paths in which the
 object follows the hand, in-grasp moves refused when their path fails; the tree differed only by doc
@@ -88,9 +91,14 @@ def run_one(path: str, method: str, stability: str, gait_order: str) -> dict:
                  "gait_order": gait_order}
     try:
         problem = RegraspProblem.load(path)
+        kw = {"stability": stability}
+        if stability == "gravity_support":  # the gravity certificate, the hand oriented to support
+            from regrasp_casadi.hand_orientation import supporting_gravity
+
+            kw = {"stability": "gravity", "gravity_palm": tuple(supporting_gravity(problem.grasp0))}
         t0 = time.perf_counter()
-        plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, stability=stability,
-                            gait_order=gait_order, object_mass=problem.object_mass)
+        plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, gait_order=gait_order,
+                            object_mass=problem.object_mass, **kw)
         wall = time.perf_counter() - t0
         t1 = time.perf_counter()
         report = verify(plan, problem.hand, problem.obj)
