@@ -53,15 +53,19 @@ class ObjectPoseFeedback:
         self.gain, self.limit = float(opts.feedback_gain), float(opts.feedback_limit)
         self.R_palm_world = opts.R_world_palm.T
         self.offset = np.zeros((len(self.fingers), len(sim.dof_hand)))
-        nv = sim.model.nv
-        self._jacp, self._jacr = np.zeros((3, nv)), np.zeros((3, nv))
+        self._tip_geoms = np.array([sim.tip_geom[f] for f in self.fingers], dtype=int)
+        self._tip_bodies = sim.model.geom_bodyid[self._tip_geoms].copy()
+        self._jacp = np.zeros((len(self.fingers), 3, sim.model.nv))
 
-    def _tip(self, data: mujoco.MjData, finger: str) -> tuple[NDArray, NDArray]:
-        """(tip centre (3,) palm frame, m; position Jacobian (3, n) palm frame per hand joint)."""
-        g = self.sim.tip_geom[finger]
-        p_world = np.array(data.geom_xpos[g])
-        mujoco.mj_jac(self.sim.model, data, self._jacp, self._jacr, p_world, self.sim.model.geom_bodyid[g])
-        return self.R_palm_world @ p_world, self.R_palm_world @ self._jacp[:, self.sim.dof_hand]
+    def _tips(self, data: mujoco.MjData, rows: NDArray) -> tuple[NDArray, NDArray]:
+        """For the fingers ``rows`` (h,): (tip centres (h, 3) palm frame, m; position Jacobians (h, 3, n)
+        palm frame, m/rad, per hand joint)."""
+        for m in rows:
+            mujoco.mj_jac(self.sim.model, data, self._jacp[m], None, data.geom_xpos[self._tip_geoms[m]],
+                          self._tip_bodies[m])
+        p_world = data.geom_xpos[self._tip_geoms[rows]]
+        J_world = self._jacp[rows][:, :, self.sim.dof_hand]
+        return p_world @ self.R_palm_world.T, self.R_palm_world @ J_world
 
     def update(self, data: mujoco.MjData, T_plan: NDArray, T_sim: NDArray, holding: NDArray,
                dt: float) -> NDArray:
@@ -72,16 +76,17 @@ class ObjectPoseFeedback:
             T_plan, T_sim: (4, 4) planned and simulated object pose, palm frame;
             holding: (m,) holding weight of each finger in [0, 1], ``fingers`` order.
         """
-        for m, finger in enumerate(self.fingers):
-            w = float(holding[m])
-            if w <= 0.0:
-                self.offset[m] *= max(0.0, 1.0 - self.gain * dt)
-                continue
-            p_tip, J = self._tip(data, finger)
-            delta = rigid_tip_corrections(T_plan, T_sim, p_tip[None])[0]
-            step = J.T @ np.linalg.solve(J @ J.T + _DAMPING**2 * np.eye(3), delta)
-            self.offset[m] += self.gain * dt * w * step
-            reach = np.linalg.norm(J @ self.offset[m])
-            if reach > self.limit:
-                self.offset[m] *= self.limit / reach
+        w = np.asarray(holding, dtype=float)
+        self.offset[w <= 0.0] *= max(0.0, 1.0 - self.gain * dt)
+        rows = np.flatnonzero(w > 0.0)
+        if rows.size:
+            p_tips, J = self._tips(data, rows)
+            delta = rigid_tip_corrections(T_plan, T_sim, p_tips)  # (h, 3)
+            A = J @ np.swapaxes(J, 1, 2) + _DAMPING**2 * np.eye(3)
+            step = np.einsum("hji,hj->hi", J, np.linalg.solve(A, delta[:, :, None])[:, :, 0])
+            offset = self.offset[rows] + (self.gain * dt * w[rows])[:, None] * step
+            reach = np.linalg.norm(np.einsum("hij,hj->hi", J, offset), axis=1)
+            over = reach > self.limit
+            offset[over] *= (self.limit / reach[over])[:, None]
+            self.offset[rows] = offset
         return self.offset.sum(axis=0)
