@@ -1,0 +1,112 @@
+"""Wall time of `regrasp_casadi.simulate` per plan, two code versions interleaved on the same plans.
+
+    python benchmarks/simulate_time.py /tmp/sim/*.json --code /tmp/sim/base . --out /tmp/sim/time.json
+
+Each (plan, code) pair runs in its own process (``PYTHONPATH=<code>``, `nice` is the caller's) with the
+CLI's options (`SimOptions()`, gravity off; ``--feedback none``: open loop); the code versions alternate
+plan by plan, so that both see the same machine load. Per run it records the wall time of the
+`simulate` call (model build included, imports excluded), the 1-minute load average before it, the
+verdict, the largest step-end deviations and every step-end deviation (mm, degrees) and touching-finger
+count, so that two versions can be compared step by step (``--compare`` prints the largest
+difference). Measures; asserts nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+HERE = pathlib.Path(__file__).resolve().parent
+
+
+def run_one(plan_path: str, feedback: str) -> dict:
+    """Simulate one plan with the code on ``sys.path``; the record (see the module docstring)."""
+    import time
+
+    from regrasp_casadi.plan import Plan
+    from regrasp_casadi.simulate import SimOptions, simulate
+
+    plan = Plan.load(pathlib.Path(plan_path))
+    load = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    report = simulate(plan, options=SimOptions(feedback=feedback))
+    wall = time.perf_counter() - t0
+    return {
+        "plan": plan_path, "steps": len(plan.steps), "wall_time": wall, "load_before": load,
+        "load_after": os.getloadavg()[0], "sim_time": report.sim_time, "status": report.status,
+        "drop_time": report.drop_time, "max_deviation_mm": report.max_deviation_mm,
+        "max_deviation_deg": report.max_deviation_deg,
+        "step_deviation_mm": [r.deviation_mm for r in report.steps],
+        "step_deviation_deg": [r.deviation_deg for r in report.steps],
+        "step_touching": [len(r.fingers_touching) for r in report.steps],
+    }
+
+
+def _spawn(code: str, plan_path: str, feedback: str) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(pathlib.Path(code).resolve()))
+    out = subprocess.run([sys.executable, __file__, "--worker", plan_path, "--feedback", feedback],
+                         env=env, capture_output=True, text=True, check=True)
+    rec = json.loads(out.stdout.strip().splitlines()[-1])
+    rec["code"] = code
+    return rec
+
+
+def compare(records: list[dict], before: str, after: str) -> None:
+    """Print per plan: wall times and their ratio, verdicts, largest step-end deviation difference."""
+    by = {(r["code"], r["plan"]): r for r in records}
+    for plan in dict.fromkeys(r["plan"] for r in records):
+        a, b = by.get((before, plan)), by.get((after, plan))
+        if a is None or b is None:
+            continue
+        d_mm = max(abs(x - y) for x, y in zip(a["step_deviation_mm"], b["step_deviation_mm"], strict=True))
+        d_deg = max(abs(x - y) for x, y in zip(a["step_deviation_deg"], b["step_deviation_deg"], strict=True))
+        same_touch = a["step_touching"] == b["step_touching"]
+        print(f"{pathlib.Path(plan).stem:26s} {a['steps']:4d} steps  {a['wall_time']:6.2f} s -> "
+              f"{b['wall_time']:6.2f} s (x{a['wall_time'] / b['wall_time']:.2f}, load {a['load_before']:.1f}/"
+              f"{b['load_before']:.1f})  {a['status']}/{b['status']}  max {a['max_deviation_mm']:.3f}/"
+              f"{b['max_deviation_mm']:.3f} mm  step-end diff {d_mm:.4f} mm {d_deg:.4f} deg"
+              f"{'' if same_touch else '  TOUCHING DIFFERS'}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("plans", nargs="*", help="plan files (JSON)")
+    ap.add_argument("--code", nargs="+", default=[str(HERE.parent)],
+                    help="folders holding a regrasp_casadi package, run in turn on each plan")
+    ap.add_argument("--feedback", default="object_pose", choices=("object_pose", "none"))
+    ap.add_argument("--out", help="write the records (JSON)")
+    ap.add_argument("--compare", nargs=2, metavar=("BEFORE", "AFTER"), help="records file: print the "
+                    "comparison of these two --code folders instead of running")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.worker:
+        print(json.dumps(run_one(args.worker, args.feedback)))
+        return
+    if args.compare:
+        compare(json.loads(pathlib.Path(args.out).read_text())["records"], *args.compare)
+        return
+    sys.path.insert(0, str(HERE))
+    from machine import machine_info
+
+    records = []
+    for plan in args.plans:
+        for code in args.code:
+            rec = _spawn(code, plan, args.feedback)
+            records.append(rec)
+            print(f"{pathlib.Path(plan).stem:26s} {code:20s} {rec['wall_time']:6.2f} s (load "
+                  f"{rec['load_before']:.1f}) {rec['status']:9s} max {rec['max_deviation_mm']:.3f} mm / "
+                  f"{rec['max_deviation_deg']:.3f} deg", flush=True)
+            if args.out:
+                pathlib.Path(args.out).write_text(json.dumps(
+                    {"machine": machine_info(("mujoco", "numpy", "scipy", "casadi")), "feedback": args.feedback,
+                     "code": args.code, "records": records}, indent=1))
+    if len(args.code) == 2:
+        compare(records, *args.code)
+
+
+if __name__ == "__main__":
+    main()
