@@ -56,16 +56,19 @@ class ObjectPoseFeedback:
         self._tip_geoms = np.array([sim.tip_geom[f] for f in self.fingers], dtype=int)
         self._tip_bodies = sim.model.geom_bodyid[self._tip_geoms].copy()
         self._jacp = np.zeros((len(self.fingers), 3, sim.model.nv))
+        dof = np.asarray(sim.dof_hand)
+        contiguous = dof.size and np.array_equal(dof, np.arange(dof[0], dof[0] + dof.size))
+        self._dof = slice(int(dof[0]), int(dof[0]) + dof.size) if contiguous else dof  # a view when possible
+        self._damping = _DAMPING**2 * np.eye(3)
 
     def _tips(self, data: mujoco.MjData, rows: NDArray) -> tuple[NDArray, NDArray]:
         """For the fingers ``rows`` (h,): (tip centres (h, 3) palm frame, m; position Jacobians (h, 3, n)
         palm frame, m/rad, per hand joint)."""
+        model, xpos = self.sim.model, data.geom_xpos
         for m in rows:
-            mujoco.mj_jac(self.sim.model, data, self._jacp[m], None, data.geom_xpos[self._tip_geoms[m]],
-                          self._tip_bodies[m])
-        p_world = data.geom_xpos[self._tip_geoms[rows]]
-        J_world = self._jacp[rows][:, :, self.sim.dof_hand]
-        return p_world @ self.R_palm_world.T, self.R_palm_world @ J_world
+            mujoco.mj_jac(model, data, self._jacp[m], None, xpos[self._tip_geoms[m]], self._tip_bodies[m])
+        J_world = self._jacp[rows][:, :, self._dof]
+        return xpos[self._tip_geoms[rows]] @ self.R_palm_world.T, self.R_palm_world @ J_world
 
     def update(self, data: mujoco.MjData, T_plan: NDArray, T_sim: NDArray, holding: NDArray,
                dt: float) -> NDArray:
@@ -77,16 +80,19 @@ class ObjectPoseFeedback:
             holding: (m,) holding weight of each finger in [0, 1], ``fingers`` order.
         """
         w = np.asarray(holding, dtype=float)
-        self.offset[w <= 0.0] *= max(0.0, 1.0 - self.gain * dt)
-        rows = np.flatnonzero(w > 0.0)
+        hold = w > 0.0
+        if not hold.all():
+            self.offset[~hold] *= max(0.0, 1.0 - self.gain * dt)
+        rows = np.flatnonzero(hold)
         if rows.size:
             p_tips, J = self._tips(data, rows)
             delta = rigid_tip_corrections(T_plan, T_sim, p_tips)  # (h, 3)
-            A = J @ np.swapaxes(J, 1, 2) + _DAMPING**2 * np.eye(3)
-            step = np.einsum("hji,hj->hi", J, np.linalg.solve(A, delta[:, :, None])[:, :, 0])
+            J_T = np.swapaxes(J, 1, 2)
+            step = (J_T @ np.linalg.solve(J @ J_T + self._damping, delta[:, :, None]))[:, :, 0]  # J⁺ δ
             offset = self.offset[rows] + (self.gain * dt * w[rows])[:, None] * step
-            reach = np.linalg.norm(np.einsum("hij,hj->hi", J, offset), axis=1)
+            reach = np.linalg.norm((J @ offset[:, :, None])[:, :, 0], axis=1)
             over = reach > self.limit
-            offset[over] *= (self.limit / reach[over])[:, None]
+            if over.any():
+                offset[over] *= (self.limit / reach[over])[:, None]
             self.offset[rows] = offset
         return self.offset.sum(axis=0)
