@@ -3,9 +3,11 @@
     python benchmarks/simulate_time.py /tmp/sim/*.json --code /tmp/sim/base . --out /tmp/sim/time.json
 
 Each (plan, code) pair runs in its own process (``PYTHONPATH=<code>``, `nice` is the caller's) with the
-CLI's options (`SimOptions()`, gravity off unless ``--gravity``; ``--feedback none``: open loop); the code versions alternate
-plan by plan, so that both see the same machine load. Per run it records the wall time of the
-`simulate` call (model build included, imports excluded), the 1-minute load average before it, the
+CLI's options (`SimOptions()`, gravity off unless ``--gravity``; ``--feedback none``: open loop); the code
+versions alternate plan by plan, so that both see the same machine load. Per run it records the wall time
+of the `simulate` call (hand and object models and the MuJoCo model built, imports and plan reading
+excluded), that of the whole process (as `regrasp simulate` without its printing), the 1-minute load
+average before it, the
 verdict, the largest step-end deviations and every step-end deviation (mm, degrees) and touching-finger
 count, so that two versions can be compared step by step (``--compare`` prints the largest
 difference). Measures; asserts nothing.
@@ -19,14 +21,13 @@ import os
 import pathlib
 import subprocess
 import sys
+import time
 
 HERE = pathlib.Path(__file__).resolve().parent
 
 
 def run_one(plan_path: str, feedback: str, gravity: tuple[float, float, float]) -> dict:
     """Simulate one plan with the code on ``sys.path``; the record (see the module docstring)."""
-    import time
-
     from regrasp_casadi.plan import Plan
     from regrasp_casadi.simulate import SimOptions, simulate
 
@@ -49,10 +50,11 @@ def run_one(plan_path: str, feedback: str, gravity: tuple[float, float, float]) 
 
 def _spawn(code: str, plan_path: str, feedback: str, gravity) -> dict:
     env = dict(os.environ, PYTHONPATH=str(pathlib.Path(code).resolve()))
+    t0 = time.perf_counter()
     out = subprocess.run([sys.executable, __file__, "--worker", plan_path, "--feedback", feedback,
                           "--gravity", *map(str, gravity)], env=env, capture_output=True, text=True, check=True)
     rec = json.loads(out.stdout.strip().splitlines()[-1])
-    rec["code"] = code
+    rec["code"], rec["process_time"] = code, time.perf_counter() - t0
     return rec
 
 
@@ -80,8 +82,9 @@ def compare(records: list[dict], before: str, after: str) -> None:
         drops = "" if a["drop_time"] is None and b["drop_time"] is None else \
             f" drop {a['drop_time'] or 0:.2f}/{b['drop_time'] or 0:.2f} s"
         print(f"{pathlib.Path(plan).stem:22s} {a['steps']:4d} steps {a['sim_time']:6.2f} s sim  {a['wall_time']:6.2f} ->"
-              f"{b['wall_time']:6.2f} s (x{a['wall_time'] / b['wall_time']:.2f}, load {a['load_before']:.1f}/"
-              f"{b['load_before']:.1f})  {a['status']}/{b['status']}{drops}  step-end diff {mm:.1e} mm "
+              f"{b['wall_time']:6.2f} s (x{a['wall_time'] / b['wall_time']:.2f}; process {a['process_time']:.1f} -> "
+              f"{b['process_time']:.1f} s; load {a['load_before']:.1f}/{b['load_before']:.1f})  "
+              f"{a['status']}/{b['status']}{drops}  step-end diff {mm:.1e} mm "
               f"{deg:.1e} deg, after the drop {mm_after:.1e} mm {deg_after:.1e} deg"
               f"{'' if a['step_touching'] == b['step_touching'] else '  TOUCHING DIFFERS'}")
 
