@@ -59,16 +59,19 @@ class ObjectPoseFeedback:
         dof = np.asarray(sim.dof_hand)
         contiguous = dof.size and np.array_equal(dof, np.arange(dof[0], dof[0] + dof.size))
         self._dof = slice(int(dof[0]), int(dof[0]) + dof.size) if contiguous else dof  # a view when possible
+        self._rotate = not np.array_equal(self.R_palm_world, np.eye(3))  # else palm frame = world frame
         self._damping = _DAMPING**2 * np.eye(3)
 
-    def _tips(self, data: mujoco.MjData, rows: NDArray) -> tuple[NDArray, NDArray]:
-        """For the fingers ``rows`` (h,): (tip centres (h, 3) palm frame, m; position Jacobians (h, 3, n)
-        palm frame, m/rad, per hand joint)."""
+    def _tips(self, data: mujoco.MjData, rows: slice | NDArray) -> tuple[NDArray, NDArray]:
+        """For the fingers ``rows`` (h of them): (tip centres (h, 3) palm frame, m; position Jacobians
+        (h, 3, n) palm frame, m/rad, per hand joint)."""
         model, xpos = self.sim.model, data.geom_xpos
-        for m in rows:
+        for m in np.arange(len(self.fingers))[rows]:
             mujoco.mj_jac(model, data, self._jacp[m], None, xpos[self._tip_geoms[m]], self._tip_bodies[m])
-        J_world = self._jacp[rows][:, :, self._dof]
-        return xpos[self._tip_geoms[rows]] @ self.R_palm_world.T, self.R_palm_world @ J_world
+        p_world, J_world = xpos[self._tip_geoms[rows]], self._jacp[rows][:, :, self._dof]
+        if not self._rotate:
+            return p_world, J_world
+        return p_world @ self.R_palm_world.T, self.R_palm_world @ J_world
 
     def update(self, data: mujoco.MjData, T_plan: NDArray, T_sim: NDArray, holding: NDArray,
                dt: float) -> NDArray:
@@ -81,18 +84,20 @@ class ObjectPoseFeedback:
         """
         w = np.asarray(holding, dtype=float)
         hold = w > 0.0
+        rows: slice | NDArray = slice(None)  # every finger holds (most ticks): views, no gathers
         if not hold.all():
             self.offset[~hold] *= max(0.0, 1.0 - self.gain * dt)
-        rows = np.flatnonzero(hold)
-        if rows.size:
-            p_tips, J = self._tips(data, rows)
-            delta = rigid_tip_corrections(T_plan, T_sim, p_tips)  # (h, 3)
-            J_T = np.swapaxes(J, 1, 2)
-            step = (J_T @ np.linalg.solve(J @ J_T + self._damping, delta[:, :, None]))[:, :, 0]  # J⁺ δ
-            offset = self.offset[rows] + (self.gain * dt * w[rows])[:, None] * step
-            reach = np.linalg.norm((J @ offset[:, :, None])[:, :, 0], axis=1)
-            over = reach > self.limit
-            if over.any():
-                offset[over] *= (self.limit / reach[over])[:, None]
-            self.offset[rows] = offset
+            rows = np.flatnonzero(hold)
+        if not hold.any():
+            return self.offset.sum(axis=0)
+        p_tips, J = self._tips(data, rows)
+        delta = rigid_tip_corrections(T_plan, T_sim, p_tips)  # (h, 3)
+        J_T = np.swapaxes(J, 1, 2)
+        step = (J_T @ np.linalg.solve(J @ J_T + self._damping, delta[:, :, None]))[:, :, 0]  # J⁺ δ
+        offset = self.offset[rows] + (self.gain * dt * w[rows])[:, None] * step
+        reach = np.linalg.norm((J @ offset[:, :, None])[:, :, 0], axis=1)
+        over = reach > self.limit
+        if over.any():
+            offset[over] *= (self.limit / reach[over])[:, None]
+        self.offset[rows] = offset
         return self.offset.sum(axis=0)
