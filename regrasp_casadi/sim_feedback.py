@@ -54,8 +54,10 @@ class ObjectPoseFeedback:
         self.R_palm_world = opts.R_world_palm.T
         self.offset = np.zeros((len(self.fingers), len(sim.dof_hand)))
         self._tip_geoms = np.array([sim.tip_geom[f] for f in self.fingers], dtype=int)
-        self._tip_bodies = sim.model.geom_bodyid[self._tip_geoms].copy()
         self._jacp = np.zeros((len(self.fingers), 3, sim.model.nv))
+        # per finger: (its Jacobian buffer (3, nv), its tip geom, the geom's body), mj_jac's arguments
+        self._jac_args = [(self._jacp[m], int(g), int(sim.model.geom_bodyid[g]))
+                          for m, g in enumerate(self._tip_geoms)]
         dof = np.asarray(sim.dof_hand)
         contiguous = dof.size and np.array_equal(dof, np.arange(dof[0], dof[0] + dof.size))
         self._dof = slice(int(dof[0]), int(dof[0]) + dof.size) if contiguous else dof  # a view when possible
@@ -66,8 +68,9 @@ class ObjectPoseFeedback:
         """For the fingers ``rows`` (h of them): (tip centres (h, 3) palm frame, m; position Jacobians
         (h, 3, n) palm frame, m/rad, per hand joint)."""
         model, xpos = self.sim.model, data.geom_xpos
-        for m in np.arange(len(self.fingers))[rows]:
-            mujoco.mj_jac(model, data, self._jacp[m], None, xpos[self._tip_geoms[m]], self._tip_bodies[m])
+        for jacp, g, body in (self._jac_args if isinstance(rows, slice) else
+                              [self._jac_args[m] for m in rows]):
+            mujoco.mj_jac(model, data, jacp, None, xpos[g], body)
         p_world, J_world = xpos[self._tip_geoms[rows]], self._jacp[rows][:, :, self._dof]
         if not self._rotate:
             return p_world, J_world
