@@ -99,8 +99,6 @@ class ObjectPoseFeedback:
         step = (J_T @ np.linalg.solve(J @ J_T + self._damping, delta[:, :, None]))[:, :, 0]  # J⁺ δ
         offset = self.offset[rows] + (self.gain * dt * w[rows])[:, None] * step
         reach = np.linalg.norm((J @ offset[:, :, None])[:, :, 0], axis=1)
-        over = reach > self.limit
-        if over.any():
-            offset[over] *= (self.limit / reach[over])[:, None]
+        offset *= (self.limit / np.maximum(reach, self.limit))[:, None]  # tip reach capped (× 1.0 below)
         self.offset[rows] = offset
         return self.offset.sum(axis=0)
