@@ -57,8 +57,8 @@ joint_commands 0.6 (of it the grip LPs, one per step and gait phase, ~0.3-0.5: s
 overhead), time-series samples every 10 ms 0.4, hand model 0.3-0.4 (`problem.plan_models`). MuJoCo's
 step (21 us idle: collision 35 %, constraint solver 30 %) is now the largest item; the Python around it
 is still ~60 % of the call. ``regrasp simulate --html`` adds the replay (`sim_replay`, not changed):
-2.4 s under cProfile for box_shift fc's 81.5 s at 25 frames/s, 75 % of it umsgpack packing meshcat's
-animation.
+1.1-1.4 s at load 4 for box_shift fc's 81.5 s at 25 frames/s (under cProfile 75 % of it is umsgpack
+packing meshcat's animation).
 """
 
 from __future__ import annotations
