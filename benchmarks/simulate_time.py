@@ -34,9 +34,11 @@ MuJoCo 4.0.0, numpy 2.4.6, scipy 1.17.1, CasADi 3.8.2, ``nice -n 10``, fastest o
 | cylinder_slide fc     |    74 |        36.1 |                3.40 |    2.30 |  1.48 |                4.0 -> 2.9 |
 | flat_tool_regrasp fc  |   119 |        67.4 |                4.71 |    2.72 |  1.73 |                5.3 -> 3.3 |
 
-Again at a575060 (the later feedback changes leave its offsets bitwise equal), same command, load 4.2-4.7:
-1.74-7.97 s -> 1.11-4.05 s, ratio 1.17-2.43 (noisy: the other jobs), processes at most 4.9 s, the
-step-end differences the same as in the table's run. Open loop (``--feedback none``, load 2.1-3.5): 0.95-4.05 s -> 0.68-2.51 s, ratio 1.38-1.69. Gravity on
+Again at a575060 (the later feedback changes leave its offsets bitwise equal), same command, load
+4.2-4.7: 1.74-7.97 s -> 1.11-4.05 s, ratio 1.17-2.43 (noisy: the other jobs), processes at most 4.9 s,
+the step-end differences the same as in the table's run.
+
+Open loop (``--feedback none``, load 2.1-3.5): 0.95-4.05 s -> 0.68-2.51 s, ratio 1.38-1.69. Gravity on
 (``--gravity 0 0 -9.81``, load 3.4-4.3): 1.20-7.43 s -> 0.93-4.88 s, ratio 1.02-1.89 (the two lowest,
 box_shift svd 1.02 and fc 1.15, with the load rising during the run; the others 1.52-1.89). The target is
 met on this machine at these loads: the slowest plan takes 4.9 s in `simulate` and 5.7 s as a process at
