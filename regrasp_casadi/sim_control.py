@@ -55,6 +55,7 @@ _SLACK_WEIGHT = 1e3  # weight of the wrench residual against the normal forces i
 _TORQUE_FRACTION = 0.8  # share of the actuator torque limit the grip may use (the rest tracks motion)
 _TANGENT_WEIGHT = 0.3  # cost of 1 N of tangential force against 1 N of normal force (no needless shear)
 _TORQUE_LENGTH = 0.05   # m: torques are divided by it in the LP (comparable with forces)
+_JACOBIAN_CHUNK = 512   # configurations per mapped CasADi Jacobian call (building a map costs ∝ its size)
 
 
 MOVING_FINGER_KINDS = ("gait", "slide")
@@ -365,7 +366,70 @@ def _phase_weights(seg: _Segment, s: float, opts: SimOptions):
 
 
 def _dls(J: NDArray, dp: NDArray) -> NDArray:
-    return J.T @ np.linalg.solve(J @ J.T + _DLS_DAMPING**2 * np.eye(3), dp)
+    """(k, n) damped least-squares joint steps Jᵀ (J Jᵀ + λ² I)⁻¹ dp for tip Jacobians J (k, 3, n) and tip
+    displacements dp (k, 3) (palm frame, m)."""
+    A = J @ np.swapaxes(J, 1, 2) + _DLS_DAMPING**2 * np.eye(3)
+    return np.einsum("kji,kj->ki", J, np.linalg.solve(A, dp[:, :, None])[:, :, 0])
+
+
+def tip_jacobians(hand, fingers, q: NDArray) -> NDArray:
+    """(k, m, 3, n) tip-centre Jacobians (palm frame, m/rad) of ``fingers`` at the configurations q (k, n)
+    rad: `Hand.tip_jacobian_function` mapped over chunks of `_JACOBIAN_CHUNK` configurations, evaluated
+    through preallocated buffers (the same numbers as k calls of `Hand.tip_jacobian`)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    k, n = q.shape
+    chunk = max(1, min(k, _JACOBIAN_CHUNK))
+    # CasADi is column-major: the input (n, chunk) is q_buf (chunk, n), the output (3, chunk n) out_buf
+    q_buf, out_buf = np.zeros((chunk, n)), np.zeros((chunk, n, 3))
+    out = np.empty((k, len(fingers), 3, n))
+    for m, f in enumerate(fingers):
+        buf, evaluate = hand.tip_jacobian_function(f).map(chunk).buffer()
+        buf.set_arg(0, memoryview(q_buf))
+        buf.set_res(0, memoryview(out_buf))
+        for start in range(0, k, chunk):
+            stop = min(start + chunk, k)
+            q_buf[:stop - start] = q[start:stop]
+            evaluate()
+            out[start:stop, m] = out_buf[:stop - start].transpose(0, 2, 1)
+    return out
+
+
+def _tick_targets(plan: Plan, opts: SimOptions, segments, contacts, *, q_lin: NDArray, seg_idx: NDArray,
+                  phase: NDArray, surface: NDArray | None):
+    """Per control tick k: the joints before the grip offsets (k, n) rad, the contact normals (k, m, 3)
+    (object frame, not unit), the `_Grip` of every tick stacked (F (k, m, 3), w (k, m), gait row (k,)
+    (−1: none), lift phase (k,) (NaN: no lift), surface (k, m) or None)."""
+    Q = np.array([st.q for st in plan.steps], dtype=float)
+    k_ticks, m = len(q_lin), len(plan.fingers)
+    q_cmd, n_object = np.empty_like(q_lin), np.empty((k_ticks, m, 3))
+    F, w = np.empty((k_ticks, m, 3)), np.empty((k_ticks, m))
+    gait, lift = np.full(k_ticks, -1), np.full(k_ticks, np.nan)
+    d = None if surface is None else np.empty((k_ticks, m))
+    for k in range(k_ticks):
+        i, s = int(seg_idx[k]), float(phase[k])
+        F[k], w[k], u, lift_k = _phase_weights(segments[i], s, opts)
+        gait[k] = -1 if segments[i].gait is None else segments[i].gait
+        if segments[i].gait is None or plan.steps[i].path is not None or plan.steps[i].kind == "slide":
+            q_cmd[k] = q_lin[k]  # a gait's path lifts the finger itself; a slide stays on the surface
+        else:  # a gait without a path: joints along a smoothstep, the tip lifted along the normal
+            q_cmd[k] = Q[i - 1] + u * (Q[i] - Q[i - 1])
+            lift[k] = np.nan if lift_k is None else lift_k
+        n_object[k] = (1 - s) * contacts[max(i - 1, 0)].n_object + s * contacts[i].n_object
+        if d is not None:
+            d[k] = (1 - s) * surface[max(i - 1, 0)] + s * surface[i]
+    return q_cmd, n_object, _Grip(F, w, gait, lift, d)
+
+
+def _step0_instants(plan: Plan, seg: _Segment, contacts: StepContacts, surface: NDArray | None):
+    """The two instants of the settle at step 0, gripping (its end) and not gripping (its start), both
+    surface corrected: (q (2, n) rad, R_palm_object (2, 3, 3), normals (2, m, 3) object frame, `_Grip`)."""
+    q = np.repeat(np.asarray(plan.steps[0].q, dtype=float)[None], 2, axis=0)
+    R = np.repeat(np.asarray(plan.steps[0].T_palm_object, dtype=float)[None, :3, :3], 2, axis=0)
+    n_object = np.repeat(contacts.n_object[None], 2, axis=0)
+    grip = _Grip(np.stack([seg.F0, np.zeros_like(seg.F0)]),
+                 np.stack([seg.w0.astype(float), np.zeros(len(seg.w0))]), np.full(2, -1), np.full(2, np.nan),
+                 None if surface is None else np.repeat(surface[:1], 2, axis=0))
+    return q, R, n_object, grip
 
 
 def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com: NDArray,
@@ -391,30 +455,16 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
     t, q_lin, T = plan_motion(plan, CONTROL_DT, *timing)
     seg_idx, phase = _segments(step_end_times(plan, *timing), t)
     segments, contacts, residual = _plan_segments(plan, hand, opts, mass, p_object_com)
-    Q = np.array([st.q for st in plan.steps], dtype=float)
-    q_cmd = np.empty_like(q_lin)
-    holding = np.empty((len(t), len(plan.fingers)))
-    for k in range(len(t)):
-        i, s = int(seg_idx[k]), float(phase[k])
-        F, w, u, lift = _phase_weights(segments[i], s, opts)
-        holding[k] = w
-        if segments[i].gait is None or plan.steps[i].path is not None or plan.steps[i].kind == "slide":
-            q_cmd[k] = q_lin[k]  # a gait's path lifts the finger itself; a slide stays on the surface
-            lift = None
-        else:  # a gait without a path: joints along a smoothstep, the tip lifted along the normal
-            q_cmd[k] = Q[i - 1] + u * (Q[i] - Q[i - 1])
-        n_object = (1 - s) * contacts[max(i - 1, 0)].n_object + s * contacts[i].n_object
-        d = None if surface is None else (1 - s) * surface[max(i - 1, 0)] + s * surface[i]
-        q_cmd[k] += _grip_offset(hand, plan.fingers, opts, q_cmd[k], T[k][:3, :3], n_object,
-                                 _Grip(F, w, segments[i].gait, lift, d))
-    R0 = np.asarray(plan.steps[0].T_palm_object)[:3, :3]
-    d0 = None if surface is None else surface[0]
-    q0 = Q[0] + _grip_offset(hand, plan.fingers, opts, Q[0], R0, contacts[0].n_object,
-                             _Grip(segments[0].F0, segments[0].w0.astype(float), None, None, d0))
-    zero = np.zeros_like(segments[0].F0)
-    q_start = Q[0] + _grip_offset(hand, plan.fingers, opts, Q[0], R0, contacts[0].n_object,
-                                  _Grip(zero, np.zeros(len(zero)), None, None, d0))
-    return Commands(t, q_cmd, T, q0, np.asarray(residual), q_start, holding)
+    q_cmd, n_object, grip = _tick_targets(plan, opts, segments, contacts, q_lin=q_lin, seg_idx=seg_idx,
+                                          phase=phase, surface=surface)
+    q0, R0, n0, grip0 = _step0_instants(plan, segments[0], contacts[0], surface)
+    q_all = np.vstack([q_cmd, q0])  # one batch: the ticks, then step 0 gripping and not gripping
+    grip_all = _Grip(*(None if a is None else np.concatenate([a, b])
+                       for a, b in zip(grip, grip0, strict=True)))
+    q_all += _grip_offsets(hand, plan.fingers, opts, q_all, np.concatenate([T[:, :3, :3], R0]),
+                           np.concatenate([n_object, n0]), grip_all)
+    q_cmd, q_grip0, q_start = q_all[:-2], q_all[-2], q_all[-1]
+    return Commands(t, q_cmd, T, q_grip0, np.asarray(residual), q_start, grip.w)
 
 
 class Commands(NamedTuple):
@@ -430,40 +480,41 @@ class Commands(NamedTuple):
 
 
 class _Grip(NamedTuple):
-    """What the fingers do at one instant: grip forces F (m, 3) on the object (object frame, N), squeeze
-    weights w (m,), the gait finger's row (None: no gait) and its lift phase in [0, 1] (None: no lift)."""
+    """What the fingers do at k instants: grip forces F (k, m, 3) on the object (object frame, N), squeeze
+    weights w (k, m), the gait finger's row gait (k,) (−1: no gait) and its lift phase in [0, 1] (k,) (NaN:
+    no lift)."""
 
     F: NDArray
     w: NDArray
-    gait: int | None
-    lift: float | None
+    gait: NDArray
+    lift: NDArray
     surface: NDArray | None = None
-    """(m,) signed distance of each tip from the SIMULATED object surface where the plan has it touch
+    """(k, m) signed distance of each tip from the SIMULATED object surface where the plan has it touch
     (the convex pieces may over-cover the mesh by a few mm), m: the tip target moves by −d along the
     normal (None or 0: no correction)."""
 
 
-def _grip_offset(hand, fingers, opts: SimOptions, q: NDArray, R_palm_object: NDArray, n_object: NDArray,
-                 grip: _Grip) -> NDArray:
-    """(n,) joint offset at one instant: surface correction and grip of every finger plus the gait finger's
-    lift; `n_object`
-    (m, 3) the contact normals (object frame, not necessarily unit), rows in `fingers` order."""
-    dq = np.zeros(len(q))
+def _grip_offsets(hand, fingers, opts: SimOptions, q: NDArray, R_palm_object: NDArray, n_object: NDArray,
+                  grip: _Grip) -> NDArray:
+    """(k, n) joint offsets at k instants (joints q (k, n) rad, object rotations R_palm_object (k, 3, 3)):
+    surface correction and grip of every finger plus the gait finger's lift; `n_object` (k, m, 3) the
+    contact normals (object frame, not necessarily unit), rows in `fingers` order. A term that does not
+    apply (no correction, no force, no squeeze, no lift) adds an exact zero."""
+    J_tips = tip_jacobians(hand, fingers, q)
+    dq = np.zeros(q.shape)
     R = R_palm_object
-    for m, f in enumerate(fingers):
-        n_obj = n_object[m]
-        n_palm = R @ (n_obj / max(np.linalg.norm(n_obj), 1e-12))
-        J = None
-        if grip.surface is not None and grip.surface[m] != 0.0:
-            J = hand.tip_jacobian(q, f)
-            dq += _dls(J, -grip.surface[m] * n_palm)
-        if opts.grip == "balanced" and np.any(grip.F[m]):
-            J = hand.tip_jacobian(q, f)
-            dq += J.T @ (R @ grip.F[m]) / opts.kp
-        elif opts.grip == "squeeze" and grip.w[m] > 0:
-            J = hand.tip_jacobian(q, f)
-            dq += _dls(J, -opts.squeeze_depth * grip.w[m] * n_palm)
-        if m == grip.gait and grip.lift is not None:
-            J = hand.tip_jacobian(q, f) if J is None else J
-            dq += _dls(J, opts.lift_height * np.sin(np.pi * grip.lift) * n_palm)
+    lift = np.nan_to_num(grip.lift, nan=0.0)
+    for m in range(len(fingers)):
+        J = J_tips[:, m]
+        n_obj = n_object[:, m]
+        n_obj = n_obj / np.maximum(np.linalg.norm(n_obj, axis=1), 1e-12)[:, None]
+        n_palm = np.einsum("kij,kj->ki", R, n_obj)
+        if grip.surface is not None:
+            dq += _dls(J, -grip.surface[:, m, None] * n_palm)
+        if opts.grip == "balanced":
+            dq += np.einsum("kji,kj->ki", J, np.einsum("kij,kj->ki", R, grip.F[:, m])) / opts.kp
+        else:  # "squeeze"
+            dq += _dls(J, -opts.squeeze_depth * np.maximum(grip.w[:, m], 0.0)[:, None] * n_palm)
+        height = np.where(grip.gait == m, opts.lift_height * np.sin(np.pi * lift), 0.0)
+        dq += _dls(J, height[:, None] * n_palm)
     return dq

@@ -53,15 +53,28 @@ class ObjectPoseFeedback:
         self.gain, self.limit = float(opts.feedback_gain), float(opts.feedback_limit)
         self.R_palm_world = opts.R_world_palm.T
         self.offset = np.zeros((len(self.fingers), len(sim.dof_hand)))
-        nv = sim.model.nv
-        self._jacp, self._jacr = np.zeros((3, nv)), np.zeros((3, nv))
+        self._tip_geoms = np.array([sim.tip_geom[f] for f in self.fingers], dtype=int)
+        self._jacp = np.zeros((len(self.fingers), 3, sim.model.nv))
+        # per finger: (its Jacobian buffer (3, nv), its tip geom, the geom's body), mj_jac's arguments
+        self._jac_args = [(self._jacp[m], int(g), int(sim.model.geom_bodyid[g]))
+                          for m, g in enumerate(self._tip_geoms)]
+        dof = np.asarray(sim.dof_hand)
+        contiguous = dof.size and np.array_equal(dof, np.arange(dof[0], dof[0] + dof.size))
+        self._dof = slice(int(dof[0]), int(dof[0]) + dof.size) if contiguous else dof  # a view when possible
+        self._rotate = not np.array_equal(self.R_palm_world, np.eye(3))  # else palm frame = world frame
+        self._damping = _DAMPING**2 * np.eye(3)
 
-    def _tip(self, data: mujoco.MjData, finger: str) -> tuple[NDArray, NDArray]:
-        """(tip centre (3,) palm frame, m; position Jacobian (3, n) palm frame per hand joint)."""
-        g = self.sim.tip_geom[finger]
-        p_world = np.array(data.geom_xpos[g])
-        mujoco.mj_jac(self.sim.model, data, self._jacp, self._jacr, p_world, self.sim.model.geom_bodyid[g])
-        return self.R_palm_world @ p_world, self.R_palm_world @ self._jacp[:, self.sim.dof_hand]
+    def _tips(self, data: mujoco.MjData, rows: slice | NDArray) -> tuple[NDArray, NDArray]:
+        """For the fingers ``rows`` (h of them): (tip centres (h, 3) palm frame, m; position Jacobians
+        (h, 3, n) palm frame, m/rad, per hand joint)."""
+        model, xpos = self.sim.model, data.geom_xpos
+        for jacp, g, body in (self._jac_args if isinstance(rows, slice) else
+                              [self._jac_args[m] for m in rows]):
+            mujoco.mj_jac(model, data, jacp, None, xpos[g], body)
+        p_world, J_world = xpos[self._tip_geoms[rows]], self._jacp[rows][:, :, self._dof]
+        if not self._rotate:
+            return p_world, J_world
+        return p_world @ self.R_palm_world.T, self.R_palm_world @ J_world
 
     def update(self, data: mujoco.MjData, T_plan: NDArray, T_sim: NDArray, holding: NDArray,
                dt: float) -> NDArray:
@@ -72,16 +85,20 @@ class ObjectPoseFeedback:
             T_plan, T_sim: (4, 4) planned and simulated object pose, palm frame;
             holding: (m,) holding weight of each finger in [0, 1], ``fingers`` order.
         """
-        for m, finger in enumerate(self.fingers):
-            w = float(holding[m])
-            if w <= 0.0:
-                self.offset[m] *= max(0.0, 1.0 - self.gain * dt)
-                continue
-            p_tip, J = self._tip(data, finger)
-            delta = rigid_tip_corrections(T_plan, T_sim, p_tip[None])[0]
-            step = J.T @ np.linalg.solve(J @ J.T + _DAMPING**2 * np.eye(3), delta)
-            self.offset[m] += self.gain * dt * w * step
-            reach = np.linalg.norm(J @ self.offset[m])
-            if reach > self.limit:
-                self.offset[m] *= self.limit / reach
+        w = np.asarray(holding, dtype=float)
+        hold = w > 0.0
+        rows: slice | NDArray = slice(None)  # every finger holds (most ticks): views, no gathers
+        if not hold.all():
+            self.offset[~hold] *= max(0.0, 1.0 - self.gain * dt)
+            rows = np.flatnonzero(hold)
+        if not hold.any():
+            return self.offset.sum(axis=0)
+        p_tips, J = self._tips(data, rows)
+        delta = rigid_tip_corrections(T_plan, T_sim, p_tips)  # (h, 3)
+        J_T = np.swapaxes(J, 1, 2)
+        step = (J_T @ np.linalg.solve(J @ J_T + self._damping, delta[:, :, None]))[:, :, 0]  # J⁺ δ
+        offset = self.offset[rows] + (self.gain * dt * w[rows])[:, None] * step
+        reach = np.linalg.norm((J @ offset[:, :, None])[:, :, 0], axis=1)
+        offset *= (self.limit / np.maximum(reach, self.limit))[:, None]  # tip reach capped (× 1.0 below)
+        self.offset[rows] = offset
         return self.offset.sum(axis=0)

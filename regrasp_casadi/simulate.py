@@ -25,6 +25,11 @@ and the angle (degrees) between the simulated and planned orientations, both in 
 end of every step. The object is **dropped** when a deviation exceeds `drop_distance` (2 cm) at any time,
 or fewer than `min_fingers` (2) fingers touch it at a step end; the plan is **followed** ("held") when it
 is not dropped and every step-end deviation is within `tol_position` / `tol_rotation` (5 mm / 5°).
+
+Cost: per physics step (`timestep`) only the joint targets are written and MuJoCo steps; the targets of
+the whole run are computed before it (`joint_commands`, every `CONTROL_DT`, one batch), the feedback
+updates every `CONTROL_DT`, the time series every `record_dt`. Wall time on the shipped plans:
+benchmarks/simulate_time.py (0.8-3.2 s for 14-82 s simulated on two shared cores at load ~1).
 """
 
 from __future__ import annotations
@@ -166,6 +171,14 @@ class _Probe:
         self.T_palm_world = np.eye(4)
         self.T_palm_world[:3, :3] = R.T
         self._force = np.zeros(6)
+        ngeom = sim.model.ngeom
+        self._is_object = np.zeros(ngeom, dtype=bool)
+        self._is_object[list(sim.object_geoms)] = True
+        self._finger_row = np.full(ngeom, -2)  # per geom: its finger row; −1 hand, no finger; −2 not hand
+        for g, finger in sim.geom_finger.items():
+            self._finger_row[g] = self.fingers.index(finger) if finger in self.fingers else -1
+        self._is_tip = np.zeros(ngeom, dtype=bool)
+        self._is_tip[list(sim.tip_geom.values())] = True
 
     def T_palm_object(self, data: mujoco.MjData) -> NDArray:
         T = np.eye(4)
@@ -173,27 +186,38 @@ class _Probe:
         T[:3, 3] = data.xpos[self.sim.object_body]
         return self.T_palm_world @ T
 
-    def deviation(self, data: mujoco.MjData, T_plan: NDArray) -> tuple[float, float]:
-        """(position error mm of the centre of mass, rotation error degrees) against ``T_plan``."""
-        T = self.T_palm_object(data)
+    def deviation(self, data: mujoco.MjData, T_plan: NDArray, T_sim: NDArray | None = None
+                  ) -> tuple[float, float]:
+        """(position error mm of the centre of mass, rotation error degrees) against ``T_plan``; ``T_sim``
+        the simulated pose (4, 4), palm frame, when already read (else read from ``data``)."""
+        T = self.T_palm_object(data) if T_sim is None else T_sim
         com = self.sim.p_object_com
         dp = (T[:3, :3] @ com + T[:3, 3]) - (T_plan[:3, :3] @ com + T_plan[:3, 3])
         return float(np.linalg.norm(dp) * 1e3), float(np.degrees(rotation_angle(T_plan[:3, :3], T[:3, :3])))
 
+    def _hand_object_contacts(self, data: mujoco.MjData) -> tuple[NDArray, NDArray]:
+        """(indices (c,) in ``data.contact`` of the hand-object contacts, the hand geom of each (c,))."""
+        geom = data.contact.geom[:data.ncon]
+        on_object_1 = self._is_object[geom[:, 0]]
+        hand_geom = np.where(on_object_1, geom[:, 1], geom[:, 0])
+        keep = (on_object_1 | self._is_object[geom[:, 1]]) & (self._finger_row[hand_geom] > -2)
+        return np.flatnonzero(keep), hand_geom[keep]
+
+    def touching(self, data: mujoco.MjData) -> set[str]:
+        """Fingers with at least one contact with the object."""
+        rows = self._finger_row[self._hand_object_contacts(data)[1]]
+        return {self.fingers[r] for r in rows[rows >= 0]}
+
     def contacts(self, model: mujoco.MjModel, data: mujoco.MjData):
         """(fingers touching, finger -> tip normal force N, other hand normal force N)."""
         touching, tip_force, other = set(), dict.fromkeys(self.fingers, 0.0), 0.0
-        for i in range(data.ncon):
-            g1, g2 = (int(g) for g in data.contact.geom[i])
-            g = g2 if g1 in self.sim.object_geoms else g1 if g2 in self.sim.object_geoms else None
-            if g is None or g not in self.sim.geom_finger:
-                continue
-            mujoco.mj_contactForce(model, data, i, self._force)
-            finger = self.sim.geom_finger[g]
-            if finger is not None:
-                touching.add(finger)
-            if finger is not None and self.sim.tip_geom.get(finger) == g:
-                tip_force[finger] += float(self._force[0])
+        for i, g in zip(*self._hand_object_contacts(data), strict=True):
+            mujoco.mj_contactForce(model, data, int(i), self._force)
+            row = self._finger_row[g]
+            if row >= 0:
+                touching.add(self.fingers[row])
+            if row >= 0 and self._is_tip[g]:
+                tip_force[self.fingers[row]] += float(self._force[0])
             else:
                 other += float(self._force[0])
         return tuple(f for f in self.fingers if f in touching), tip_force, other
@@ -280,8 +304,27 @@ def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     return Q, T_ref, W, ends, n_settle, residual, q0
 
 
+def _sample(series: dict[str, list], probe: _Probe, data: mujoco.MjData, T_plan: NDArray) -> float:
+    """Append one sample of every time series (`SimReport.series`) at the current state, the planned
+    object pose ``T_plan`` (4, 4) palm frame; returns its position deviation, mm."""
+    T_sim = probe.T_palm_object(data)
+    dev_mm, dev_deg = probe.deviation(data, T_plan, T_sim)
+    touching, tip_force, other = probe.contacts(probe.sim.model, data)
+    sample = {"t": float(data.time), "deviation_mm": dev_mm, "deviation_deg": dev_deg,
+              "n_touching": len(touching), "tip_normal_force": [tip_force[f] for f in probe.fingers],
+              "other_normal_force": other, "q": data.qpos[probe.sim.qpos_hand].copy(), "T_palm_object": T_sim,
+              "T_palm_object_plan": np.asarray(T_plan, dtype=float)}
+    for key, value in sample.items():
+        series[key].append(value)
+    return dev_mm
+
+
 def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
-    """Step the simulation along the timeline; returns (step records, series, drop time or None)."""
+    """Step the simulation along the timeline; returns (step records, series, drop time or None).
+
+    Per physics step only the joint targets are set (the timeline's, plus the feedback's offset, which
+    changes every `CONTROL_DT`); the feedback, the touch window's contact reads, the step-end records and
+    the time series' samples run at their own instants."""
     model, data = sim.model, mujoco.MjData(sim.model)
     Q, T_ref, W, ends, n_settle, residual, q_start = _timeline(sim, plan, hand, opts)
     feedback = ObjectPoseFeedback(sim, plan.fingers, opts) if opts.feedback == "object_pose" else None
@@ -293,21 +336,24 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     every = max(int(round(opts.record_dt / opts.timestep)), 1)
     step_at = {int(k): i for i, k in enumerate(ends)}
     series: dict[str, list] = {k: [] for k in ("t", "deviation_mm", "deviation_deg", "n_touching",
-                                               "tip_normal_force", "other_normal_force", "q",
-                                               "T_palm_object", "T_palm_object_plan")}
+                                               "tip_normal_force", "other_normal_force", *_MOTION_SERIES)}
     window = max(1, int(round(opts.touch_window / opts.timestep)))
     watch = {e - j for e in [*step_at, len(Q)] for j in range(1, window)}  # sim steps just before an end
     records, drop_time, recent = [], None, set()
+    direct = np.array_equal(sim.actuator, np.arange(model.nu))  # actuator ids in joint order: no gather
     for k in range(len(Q)):
         if k <= n_settle:
             model.opt.gravity[:] = gravity * min(1.0, k / max(0.6 * n_settle, 1))
-        data.ctrl[sim.actuator] = Q[k] + offset
+        if direct:
+            np.add(Q[k], offset, out=data.ctrl)
+        else:
+            data.ctrl[sim.actuator] = Q[k] + offset
         mujoco.mj_step(model, data)
         if feedback is not None and (k + 1) % every_control == 0:
             offset = feedback.update(data, T_ref[k], probe.T_palm_object(data), W[k],
                                      every_control * opts.timestep)
         if k + 1 in watch:
-            recent.update(probe.contacts(model, data)[0])
+            recent.update(probe.touching(data))
         if k + 1 in step_at:
             i = step_at[k + 1]
             st = plan.steps[i]
@@ -315,17 +361,7 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
                                    finger=st.finger, residual=residual[i], recent=recent))
             recent = set()
         if (k + 1) % every == 0 or k + 1 == len(Q):
-            dev_mm, dev_deg = probe.deviation(data, T_ref[k])
-            series["t"].append(float(data.time))
-            series["deviation_mm"].append(dev_mm)
-            series["deviation_deg"].append(dev_deg)
-            touching, tip_force, other = probe.contacts(model, data)
-            series["n_touching"].append(len(touching))
-            series["tip_normal_force"].append([tip_force[f] for f in probe.fingers])
-            series["other_normal_force"].append(other)
-            series["q"].append(data.qpos[sim.qpos_hand].copy())
-            series["T_palm_object"].append(probe.T_palm_object(data))
-            series["T_palm_object_plan"].append(np.asarray(T_ref[k], dtype=float))
+            dev_mm = _sample(series, probe, data, T_ref[k])
             if drop_time is None and dev_mm > opts.drop_distance * 1e3:
                 drop_time = float(data.time)
     model.opt.gravity[:] = gravity

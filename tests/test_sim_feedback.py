@@ -3,13 +3,14 @@ in physics, a planted plan whose object pose the joints alone do not realise."""
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 from sim_plans import BOX_SHIFT, make_plan
 
-from regrasp_casadi.mujoco_model import SimOptions
-from regrasp_casadi.sim_feedback import rigid_tip_corrections
+from regrasp_casadi.mujoco_model import SimOptions, build_model
+from regrasp_casadi.sim_feedback import ObjectPoseFeedback, rigid_tip_corrections
 from regrasp_casadi.simulate import simulate
 
 
@@ -62,3 +63,52 @@ def test_feedback_moves_the_object_onto_its_planned_pose(hand, shifted_plan, fee
     else:
         assert final.deviation_mm < 0.5 and final.deviation_deg < 1.0, report.summary()
         assert len(final.fingers_touching) == 4, report.summary()
+
+
+def _law(hand, q, T_plan, T_sim, holding, dt, *, offset, opts) -> np.ndarray:
+    """The module docstring's law, finger by finger, with the project's CasADi tip centres and Jacobians at
+    q (not MuJoCo's): (m, n) offsets after one update of ``offset`` (m, n)."""
+    E = T_plan @ np.linalg.inv(T_sim)
+    p_palm_tips = hand.tip_positions(q)
+    out = np.array(offset, dtype=float)
+    for m, finger in enumerate(hand.fingers):
+        if holding[m] <= 0.0:
+            out[m] *= max(0.0, 1.0 - opts.feedback_gain * dt)
+            continue
+        J = hand.tip_jacobian(q, finger)
+        delta = E[:3, :3] @ p_palm_tips[m] + E[:3, 3] - p_palm_tips[m]
+        step = J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(3), delta)
+        out[m] += opts.feedback_gain * dt * holding[m] * step
+        reach = np.linalg.norm(J @ out[m])
+        if reach > opts.feedback_limit:
+            out[m] *= opts.feedback_limit / reach
+    return out
+
+
+def test_feedback_update_is_the_law_with_the_projects_jacobians(hand, shifted_plan):
+    """Two updates of `ObjectPoseFeedback` (the palm turned in the world, the box 5 mm and 3° off its
+    planned pose) equal the law written per finger with the project's kinematics: a holding finger moves
+    by k_I dt w J⁺ δ, its tip displacement capped at `feedback_limit` (some fingers capped, some not), a
+    finger that stops holding decays by (1 − k_I dt)."""
+    _, problem = shifted_plan
+    opts = SimOptions(palm_wxyz=(np.cos(0.4), np.sin(0.4) * 0.6, 0.0, np.sin(0.4) * 0.8),
+                      feedback_limit=0.003)
+    sim = build_model(hand, problem.obj, opts)
+    data = mujoco.MjData(sim.model)
+    q = problem.grasp0.q
+    data.qpos[sim.qpos_hand] = q
+    mujoco.mj_forward(sim.model, data)  # the Jacobians need the com-based quantities too
+    T_sim = np.asarray(problem.grasp0.T_palm_object, dtype=float)
+    T_plan = _pose([0.02, -0.03, 0.04], [0.004, -0.003, 0.0]) @ T_sim
+    feedback = ObjectPoseFeedback(sim, hand.fingers, opts)
+    expected = np.zeros((len(hand.fingers), hand.n_joints))
+    for holding, dt in (([1.0, 0.3, 1.0, 0.6], 0.1), ([1.0, 0.0, 0.5, 1.0], 0.05)):
+        previous = expected
+        expected = _law(hand, q, T_plan, T_sim, holding, dt, offset=previous, opts=opts)
+        offset = feedback.update(data, T_plan, T_sim, np.array(holding), dt)
+        np.testing.assert_allclose(feedback.offset, expected, atol=1e-9)
+        np.testing.assert_allclose(offset, expected.sum(axis=0), atol=1e-9)
+    np.testing.assert_allclose(expected[1], 0.5 * previous[1], atol=1e-15)  # decayed: k_I dt = 0.5
+    reach = np.array([np.linalg.norm(hand.tip_jacobian(q, f) @ expected[m])
+                      for m, f in enumerate(hand.fingers)])
+    assert np.isclose(reach, opts.feedback_limit).any() and (reach < 0.9 * opts.feedback_limit).any(), reach

@@ -14,7 +14,14 @@ from scipy.spatial.transform import Rotation
 from sim_plans import BOX_SHIFT, GRAVITY_DOWN, lifted, make_plan
 
 from regrasp_casadi.mujoco_model import OBJECT_BODY, SimOptions, build_model
-from regrasp_casadi.sim_control import grip_forces, plan_motion, step_contacts, step_end_times
+from regrasp_casadi.sim_control import (
+    CONTROL_DT,
+    grip_forces,
+    joint_commands,
+    plan_motion,
+    step_contacts,
+    step_end_times,
+)
 from regrasp_casadi.simulate import simulate
 from regrasp_casadi.transforms import log_SO3
 
@@ -164,6 +171,43 @@ def test_a_sliding_fingers_kinetic_friction_is_balanced_or_reported(hand, box_pr
         wrench = np.concatenate([F.sum(axis=0), np.cross(contacts.p_object - com, F).sum(axis=0) / 0.05])
         assert np.linalg.norm(wrench[:3]) + np.linalg.norm(wrench[3:]) <= residual + 1e-6
     assert residual > 0.5 * opts.grip_force, residual
+
+
+def test_joint_commands_add_the_grip_and_the_lift_to_the_motion(hand, box_problem):
+    """The commanded targets of a gait without a path (index lifted) under gravity, against the law of
+    `sim_control` written per finger with `grip_forces` and the hand's tip Jacobians: at step 0 the
+    plan's joints plus Σ Jᵀ R f / kp (f the LP's forces), and in mid-move the joints along the smoothstep
+    plus Jᵀ R f_mid / kp of the three holding fingers plus the index's lift, J⁺ (h sin(π u) n) along its
+    contact normal (palm frame)."""
+    g0 = box_problem.grasp0
+    q1 = lifted(hand, box_problem.obj, g0.q, g0.T_palm_object, "index", 0.01)
+    plan = make_plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
+                                         ("gait", "index", q1, g0.T_palm_object)])
+    opts, mass, com = SimOptions(gravity_palm=GRAVITY_DOWN), 0.21, np.zeros(3)
+    t, q_cmd, _, q_grip0, _, q_start, holding = joint_commands(plan, hand, opts, mass, com)
+    contacts = step_contacts(plan, hand)
+    R = g0.T_palm_object[:3, :3]
+    g_object = R.T @ np.array(GRAVITY_DOWN)
+
+    def expected(q, holding_rows, p_palm_lift=(0.0, 0.0, 0.0)):  # the index's tip raised by p_palm_lift, m
+        F, _ = grip_forces(contacts[0], holding_rows, g_object, mass, com, opts)
+        dq = sum(hand.tip_jacobian(q, f).T @ (R @ F[m]) / opts.kp for m, f in enumerate(plan.fingers))
+        J = hand.tip_jacobian(q, "index")
+        return q + dq + J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(3), np.asarray(p_palm_lift))
+
+    np.testing.assert_allclose(q_grip0, expected(g0.q, contacts[0].touching), atol=1e-12)
+    np.testing.assert_allclose(q_start, g0.q, atol=1e-15)  # no grip, no surface correction
+    t_end = step_end_times(plan, opts.joint_velocity, opts.min_step_duration, opts.unload_fraction,
+                           opts.min_handover_time)
+    k = int(round(0.45 * t_end[1] / CONTROL_DT))  # mid-move: the index lifted, the others hold
+    s = t[k] / t_end[1]
+    u = (s - opts.unload_fraction) / (1.0 - 2.0 * opts.unload_fraction)
+    row = list(plan.fingers).index("index")
+    assert 0.0 < u < 1.0 and holding[k, row] == 0.0 and holding[k].sum() == 3.0
+    q_smooth = g0.q + u * u * (3.0 - 2.0 * u) * (q1 - g0.q)
+    n_index = (1 - s) * contacts[0].n_object[row] + s * contacts[1].n_object[row]
+    p_palm_lift = opts.lift_height * np.sin(np.pi * u) * (R @ n_index) / np.linalg.norm(n_index)
+    np.testing.assert_allclose(q_cmd[k], expected(q_smooth, holding[k] > 0, p_palm_lift), atol=1e-12)
 
 
 # ------------------------------------------------------------------------------------------ execution
