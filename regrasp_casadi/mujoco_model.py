@@ -142,6 +142,12 @@ class SimOptions:
     """Integral gain k_I of the object-pose feedback, 1/s."""
     feedback_limit: float = 0.01
     """Largest tip displacement of one finger's feedback offset, m."""
+    force_gain: float = 3.0
+    """Integral gain k_F of the grip-force feedback, 1/s (`sim_grip_feedback`: each holding tip's normal
+    force driven to the "balanced" grip's, from MuJoCo's contact forces); 0: off (the grip feed-forward
+    only)."""
+    force_limit_offset: float = 0.005
+    """Largest tip displacement of one finger's grip-force feedback offset, m."""
     settle_time: float = 0.5
     """Time spent at the plan's first step before the motion starts, s (squeeze and gravity ramp in
     over its first 60 %)."""

@@ -449,7 +449,8 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
         the targets that grip at step 0 (the settle's end); residual (s,) grip LP residual per step, N;
         q_start (n,) the hand at step 0 with the surface correction only (the settle's start); holding
         (k, m) each finger's holding weight in [0, 1] (0 while a gait lifts it, ramping over its load
-        hand-over), ``plan.fingers`` order.
+        hand-over), ``plan.fingers`` order; press (k, m) the planned normal force of each finger, N, and
+        n_palm (k, m, 3) its outward contact normal, palm frame (the grip-force feedback's targets).
     """
     timing = (opts.joint_velocity, opts.min_step_duration, opts.unload_fraction, opts.min_handover_time)
     t, q_lin, T = plan_motion(plan, CONTROL_DT, *timing)
@@ -464,7 +465,10 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
     q_all += _grip_offsets(hand, plan.fingers, opts, q_all, np.concatenate([T[:, :3, :3], R0]),
                            np.concatenate([n_object, n0]), grip_all)
     q_cmd, q_grip0, q_start = q_all[:-2], q_all[-2], q_all[-1]
-    return Commands(t, q_cmd, T, q_grip0, np.asarray(residual), q_start, grip.w)
+    n_unit = n_object / np.maximum(np.linalg.norm(n_object, axis=2, keepdims=True), 1e-12)
+    press = np.maximum(-np.einsum("kmi,kmi->km", grip.F, n_unit), 0.0)  # the planned normal forces, N
+    n_palm = np.einsum("kij,kmj->kmi", T[:, :3, :3], n_unit)
+    return Commands(t, q_cmd, T, q_grip0, np.asarray(residual), q_start, grip.w, press, n_palm)
 
 
 class Commands(NamedTuple):
@@ -477,6 +481,10 @@ class Commands(NamedTuple):
     residual: NDArray
     q_start: NDArray
     holding: NDArray
+    press: NDArray | None = None
+    """(k, m) each finger's planned normal force on the object ("balanced" grip), N (0: none)."""
+    n_palm: NDArray | None = None
+    """(k, m, 3) each finger's outward contact normal, palm frame (unit)."""
 
 
 class _Grip(NamedTuple):

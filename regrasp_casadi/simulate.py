@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 from regrasp_casadi.mujoco_model import SimModel, SimOptions, build_model
 from regrasp_casadi.sim_control import CONTROL_DT, joint_commands, plan_motion, step_durations, step_end_times
 from regrasp_casadi.sim_feedback import ObjectPoseFeedback
+from regrasp_casadi.sim_grip_feedback import GripForceFeedback
 from regrasp_casadi.transforms import rotation_angle
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -281,10 +282,11 @@ def surface_distances(sim: SimModel, plan: Plan, hand, opts: SimOptions) -> NDAr
 
 def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     """Targets at every simulation step: (q_cmd (N, n), planned T (N, 4, 4), holding weights (N, m),
-    step-end sim indices, settle length, grip residual per step, the hand's start q (n,))."""
+    step-end sim indices, settle length, grip residual per step, the hand's start q (n,), and the grip
+    targets (planned normal forces (N, m), N; outward contact normals (N, m, 3), palm frame))."""
     surface = surface_distances(sim, plan, hand, opts) if opts.surface_correction else None
-    t, q_cmd, T, q_grip0, residual, q0, holding = joint_commands(plan, hand, opts, sim.object_mass,
-                                                                 sim.p_object_com, surface)
+    cmd = joint_commands(plan, hand, opts, sim.object_mass, sim.p_object_com, surface)
+    t, q_cmd, T, q_grip0, residual, q0, holding = cmd[:7]
     dt = opts.timestep
     n_settle = int(round(opts.settle_time / dt))
     n_hold = int(round(opts.hold_time / dt))
@@ -296,12 +298,12 @@ def _timeline(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     # velocity feed-forward: the servo force kp (ctrl − q) − kv q̇ − damping q̇ then has no lag on a ramp
     Q = Q + (opts.kv + opts.joint_damping) / opts.kp * np.gradient(Q, dt, axis=0)
     T_ref = np.concatenate([np.repeat(T[:1], n_settle, 0), T[idx], np.repeat(T[-1:], n_hold, 0)])
-    W = np.concatenate([np.repeat(holding[:1], n_settle, 0), holding[idx],
-                        np.repeat(holding[-1:], n_hold, 0)])
+    W, press, n_palm = (np.concatenate([np.repeat(a[:1], n_settle, 0), a[idx], np.repeat(a[-1:], n_hold, 0)])
+                        for a in (holding, cmd.press, cmd.n_palm))
     t_end = step_end_times(plan, opts.joint_velocity, opts.min_step_duration, opts.unload_fraction,
                            opts.min_handover_time)
     ends = n_settle + np.rint(t_end / dt).astype(int)
-    return Q, T_ref, W, ends, n_settle, residual, q0
+    return Q, T_ref, W, ends, n_settle, residual, q0, (press, n_palm)
 
 
 def _sample(series: dict[str, list], probe: _Probe, data: mujoco.MjData, T_plan: NDArray) -> float:
@@ -326,8 +328,11 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     changes every `CONTROL_DT`); the feedback, the touch window's contact reads, the step-end records and
     the time series' samples run at their own instants."""
     model, data = sim.model, mujoco.MjData(sim.model)
-    Q, T_ref, W, ends, n_settle, residual, q_start = _timeline(sim, plan, hand, opts)
+    Q, T_ref, W, ends, n_settle, residual, q_start, (press, n_palm) = _timeline(sim, plan, hand, opts)
     feedback = ObjectPoseFeedback(sim, plan.fingers, opts) if opts.feedback == "object_pose" else None
+    force = GripForceFeedback(sim, plan.fingers, opts) if opts.force_gain > 0 and opts.grip == "balanced" \
+        else None
+    pose_offset, force_offset = np.zeros(Q.shape[1]), np.zeros(Q.shape[1])
     every_control = max(int(round(CONTROL_DT / opts.timestep)), 1)
     offset = np.zeros(Q.shape[1])
     gravity = np.array(model.opt.gravity)
@@ -349,9 +354,15 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
         else:
             data.ctrl[sim.actuator] = Q[k] + offset
         mujoco.mj_step(model, data)
-        if feedback is not None and (k + 1) % every_control == 0:
-            offset = feedback.update(data, T_ref[k], probe.T_palm_object(data), W[k],
-                                     every_control * opts.timestep)
+        if (k + 1) % every_control == 0 and (feedback is not None or force is not None):
+            dt_control = every_control * opts.timestep
+            if feedback is not None:
+                pose_offset = feedback.update(data, T_ref[k], probe.T_palm_object(data), W[k], dt_control)
+            if force is not None:
+                f_tip = probe.contacts(model, data)[1]
+                force_offset = force.update(data, np.array([f_tip[f] for f in plan.fingers]), press[k],
+                                            n_palm[k], W[k], dt_control)
+            offset = pose_offset + force_offset
         if k + 1 in watch:
             recent.update(probe.touching(data))
         if k + 1 in step_at:

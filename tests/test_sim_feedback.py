@@ -112,3 +112,46 @@ def test_feedback_update_is_the_law_with_the_projects_jacobians(hand, shifted_pl
     reach = np.array([np.linalg.norm(hand.tip_jacobian(q, f) @ expected[m])
                       for m, f in enumerate(hand.fingers)])
     assert np.isclose(reach, opts.feedback_limit).any() and (reach < 0.9 * opts.feedback_limit).any(), reach
+
+
+def test_grip_force_update_is_the_law_with_the_projects_jacobians(hand, shifted_plan):
+    """Two updates of `GripForceFeedback` (palm turned in the world) equal its law written per finger with
+    the project's kinematics: a holding finger short of its planned normal force f* moves by
+    k_F dt w Jᵀ(−n)(f* − f)/kp, one at or above it does not move, one that stops holding (or has no
+    planned force) decays by (1 − k_F dt); the tip displacement is capped at `force_limit_offset`."""
+    from regrasp_casadi.sim_grip_feedback import GripForceFeedback
+
+    _, problem = shifted_plan
+    opts = SimOptions(palm_wxyz=(np.cos(0.4), np.sin(0.4) * 0.6, 0.0, np.sin(0.4) * 0.8), force_gain=4.0,
+                      force_limit_offset=0.0015)
+    sim = build_model(hand, problem.obj, opts)
+    data = mujoco.MjData(sim.model)
+    q = problem.grasp0.q
+    data.qpos[sim.qpos_hand] = q
+    mujoco.mj_forward(sim.model, data)
+    n_palm = np.array([[0.0, -1.0, 0.0], [0.0, -0.8, 0.6], [0.6, -0.8, 0.0], [0.0, 1.0, 0.0]])
+    feedback = GripForceFeedback(sim, hand.fingers, opts)
+    expected = np.zeros((len(hand.fingers), hand.n_joints))
+    updates = (([0.2, 0.5, 0.0, 0.9], [1.0, 1.0, 2.0, 1.0], [1.0, 1.0, 1.0, 0.5], 0.1),
+               ([0.2, 1.5, 0.0, 0.9], [30.0, 1.0, 0.0, 1.0], [1.0, 1.0, 1.0, 0.0], 0.05))
+    for f_measured, f_target, holding, dt in updates:
+        previous = expected.copy()
+        for m, finger in enumerate(hand.fingers):
+            if holding[m] <= 0.0 or f_target[m] <= 0.0:
+                expected[m] *= 1.0 - opts.force_gain * dt
+                continue
+            J = hand.tip_jacobian(q, finger)
+            short = max(f_target[m] - f_measured[m], 0.0)
+            expected[m] += opts.force_gain * dt * holding[m] * J.T @ (-n_palm[m] * short) / opts.kp
+            reach = np.linalg.norm(J @ expected[m])
+            if reach > opts.force_limit_offset:
+                expected[m] *= opts.force_limit_offset / reach
+        offset = feedback.update(data, np.array(f_measured), np.array(f_target), n_palm, np.array(holding),
+                                 dt)
+        np.testing.assert_allclose(feedback.offset, expected, atol=1e-9)
+        np.testing.assert_allclose(offset, expected.sum(axis=0), atol=1e-9)
+    assert np.abs(previous[1]).max() > 0  # short of its target at the first update: it moved
+    np.testing.assert_allclose(expected[1], previous[1], atol=1e-15)  # above it at the second: unchanged
+    np.testing.assert_allclose(expected[3], 0.8 * previous[3], atol=1e-15)  # stopped holding: k_F dt = 0.2
+    reach = np.linalg.norm(hand.tip_jacobian(q, "index") @ expected[0])
+    assert np.isclose(reach, opts.force_limit_offset)  # 30 N short: capped

@@ -184,7 +184,8 @@ def test_joint_commands_add_the_grip_and_the_lift_to_the_motion(hand, box_proble
     plan = make_plan(hand, box_problem.obj, [("initial", None, g0.q, g0.T_palm_object),
                                          ("gait", "index", q1, g0.T_palm_object)])
     opts, mass, com = SimOptions(gravity_palm=GRAVITY_DOWN), 0.21, np.zeros(3)
-    t, q_cmd, _, q_grip0, _, q_start, holding = joint_commands(plan, hand, opts, mass, com)
+    cmd = joint_commands(plan, hand, opts, mass, com)
+    t, q_cmd, _, q_grip0, _, q_start, holding = cmd[:7]
     contacts = step_contacts(plan, hand)
     R = g0.T_palm_object[:3, :3]
     g_object = R.T @ np.array(GRAVITY_DOWN)
@@ -208,6 +209,13 @@ def test_joint_commands_add_the_grip_and_the_lift_to_the_motion(hand, box_proble
     n_index = (1 - s) * contacts[0].n_object[row] + s * contacts[1].n_object[row]
     p_palm_lift = opts.lift_height * np.sin(np.pi * u) * (R @ n_index) / np.linalg.norm(n_index)
     np.testing.assert_allclose(q_cmd[k], expected(q_smooth, holding[k] > 0, p_palm_lift), atol=1e-12)
+    # the grip-force feedback's targets in mid-move: the LP's normal forces, the lifted index none
+    F_mid, _ = grip_forces(contacts[0], holding[k] > 0, g_object, mass, com, opts)
+    n_unit = (1 - s) * contacts[0].n_object + s * contacts[1].n_object
+    n_unit /= np.linalg.norm(n_unit, axis=1, keepdims=True)
+    np.testing.assert_allclose(cmd.press[k], -np.einsum("mi,mi->m", F_mid, n_unit), atol=1e-9)
+    assert cmd.press[k, row] == 0.0 and np.all(cmd.press[k][holding[k] > 0] >= opts.grip_force - 1e-9)
+    np.testing.assert_allclose(cmd.n_palm[k], n_unit @ R.T, atol=1e-12)
 
 
 # ------------------------------------------------------------------------------------------ execution
