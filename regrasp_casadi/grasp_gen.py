@@ -264,8 +264,11 @@ def _pick_targets(search: _Search, clear: dict[str, ClearSamples], T, rng, away:
     """Target indices whose own contacts (surface points, face normals) are in force closure, each
     reachable by a workspace sample of `clear` (links clear of the object at pose T)."""
     data = search.data
+    reach = _Reach.at(search.hand, data, clear, T, away)
+    if reach is None:
+        return None
     for _ in range(tries):
-        idx = _pick_targets_once(search.hand, data, clear, T, rng, away)
+        idx = _pick_targets_once(search.hand, reach, rng)
         if idx is not None and force_closure_quality(data.points[idx], data.normals[idx],
                                                      search.mu * _CONE_SHRINK, data.com,
                                                      data.length) > _PRECHECK * _MIN_QUALITY:
@@ -273,32 +276,47 @@ def _pick_targets(search: _Search, clear: dict[str, ClearSamples], T, rng, away:
     return None
 
 
-def _pick_targets_once(hand: Hand, data: _ObjectData, clear: dict[str, ClearSamples], T, rng,
-                       away: _Away | None):
-    """Contact targets (surface point, normal) per finger, object frame; None if none fit.
+class _Reach(NamedTuple):
+    """The surface samples in the palm frame at one object pose — points P (s, 3), normals N (s, 3),
+    tip-centre goals P + r·N (m) — and, per finger, the indices of the samples it can reach."""
+
+    P: NDArray[np.float64]
+    N: NDArray[np.float64]
+    goals: NDArray[np.float64]
+    by_finger: dict[str, NDArray[np.int64]]
+
+    @staticmethod
+    def at(hand: Hand, data: _ObjectData, clear: dict[str, ClearSamples], T, away: _Away | None):
+        """The reach at pose T (4, 4): a goal within `_REACH_TOL` of a clear workspace sample's tip (and,
+        with `away`, ≥ its distance from the finger's initial contact); None if a finger reaches none."""
+        P = transform_points(T, data.points)
+        N = data.normals @ T[:3, :3].T
+        goals = P + hand.tip_radius * N
+        by_finger = {}
+        for i, f in enumerate(hand.fingers):
+            dist, _ = clear[f].nearest(goals, 1)
+            ok = dist <= _REACH_TOL
+            if away is not None:
+                ok &= np.linalg.norm(data.points - away.contacts_object[i], axis=1) >= away.min_mean_distance
+            by_finger[f] = np.nonzero(ok)[0]
+            if len(by_finger[f]) == 0:
+                return None
+        return _Reach(P, N, goals, by_finger)
+
+
+def _pick_targets_once(hand: Hand, reach: _Reach, rng):
+    """Contact targets (surface sample indices) per finger among those each finger can reach; None if
+    none fit.
 
     The non-thumb fingers get reachable targets ≥ `_TIP_SPACING` apart; the thumb gets a reachable target
     whose inward line of action passes near the fingers' centroid and whose normal opposes theirs.
     """
     fingers = list(hand.fingers)
     thumb = hand.thumb if hand.thumb is not None else fingers[-1]  # no thumb in the metadata: the last
-    r = hand.tip_radius
-    P = transform_points(T, data.points)
-    N = data.normals @ T[:3, :3].T
-    goals = P + r * N
-    reach = {}
-    for f in fingers:
-        dist, _ = clear[f].nearest(goals, 1)
-        ok = dist <= _REACH_TOL
-        if away is not None:
-            dd = np.linalg.norm(data.points - away.contacts_object[fingers.index(f)], axis=1)
-            ok &= dd >= away.min_mean_distance
-        reach[f] = np.nonzero(ok)[0]
-        if len(reach[f]) == 0:
-            return None
+    P, N, goals = reach.P, reach.N, reach.goals
     chosen: dict[str, int] = {}
     for f in (f for f in fingers if f != thumb):
-        cand = reach[f]
+        cand = reach.by_finger[f]
         for i in chosen.values():
             cand = cand[np.linalg.norm(goals[cand] - goals[i], axis=1) >= _TIP_SPACING]
         if chosen:
@@ -311,7 +329,7 @@ def _pick_targets_once(hand: Hand, data: _ObjectData, clear: dict[str, ClearSamp
     centroid = P[fi].mean(axis=0)
     n_fingers = N[fi].mean(axis=0)
     n_fingers /= max(np.linalg.norm(n_fingers), 1e-9)
-    cand = reach[thumb]
+    cand = reach.by_finger[thumb]
     gap = np.min(np.linalg.norm(goals[cand][:, None] - goals[fi][None], axis=2), axis=1)
     cand = cand[gap >= _TIP_SPACING]
     cand = cand[N[cand] @ n_fingers <= -0.5]
