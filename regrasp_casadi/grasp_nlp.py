@@ -46,7 +46,7 @@ from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.self_collision import SelfCollisionConstraint
 from regrasp_casadi.transforms import inv_T, make_T, transform_points
 
-__all__ = ["SURFACE_TOL", "GraspNLP", "GraspSolution", "grasp_nlp", "solve_exact"]
+__all__ = ["SURFACE_TOL", "GraspNLP", "GraspSolution", "grasp_nlp", "solve_exact", "sphere_offsets"]
 
 log = logging.getLogger(__name__)
 
@@ -236,11 +236,7 @@ def solve_exact(nlp: GraspNLP, targets_obj: NDArray[np.float64], q0: NDArray[np.
     def new_round(x, c: GraspSolution, rnd: _Round) -> _Round:
         log.debug("tip error %.3g mm, min clearance %.3g mm", 1e3 * np.max(np.abs(c.ex_tip - r)),
                   1e3 * np.min(c.ex_sph - nlp.radii))
-        # spheres near the object, or whose constraint is nearly active, get the exact-minus-smooth offset
-        # (either sign); the others only tighten
-        near = ((c.ex_sph - nlp.radii < _NEAR)
-                | (c.sd_sph + rnd.delta_sph - nlp.radii - nlp.beta - _MARGIN < _NEAR))
-        delta_sph = np.where(near, c.ex_sph - c.sd_sph, np.minimum(rnd.delta_sph, c.ex_sph - c.sd_sph))
+        delta_sph = sphere_offsets(c.ex_sph, c.sd_sph, rnd.delta_sph, nlp.radii, nlp.beta + _MARGIN)
         # polish: re-centre the pose prior on the solution and pull q towards it (a proximal term), so
         # the tips stay where the offsets were measured and the correction converges
         T_cur = c.T_palm_object
@@ -259,6 +255,18 @@ def solve_exact(nlp: GraspNLP, targets_obj: NDArray[np.float64], q0: NDArray[np.
     if not corr.converged:
         return None, "not_exact"
     return corr.evaluation, ""
+
+
+def sphere_offsets(ex_sph, sd_sph, delta_prev, radii, bound: float) -> NDArray[np.float64]:
+    """The non-tip spheres' offsets δ (k,) m for the next round, from the exact and smooth distances of
+    their centres (k,) m at the last solution, the offsets it was solved with (k,) m, their radii (k,) m
+    and the constraint's bound β + margin (m): a sphere within `_NEAR` of the object by exact clearance,
+    or whose constraint sd + δ − ρ was within `_NEAR` of the bound, gets δ = d_exact − sd (either sign);
+    the others keep min(δ, d_exact − sd) (they only tighten, so a far sphere is not freed where the model
+    is conservative)."""
+    ex_sph, sd_sph, delta_prev = (np.asarray(v, float) for v in (ex_sph, sd_sph, delta_prev))
+    near = (ex_sph - radii < _NEAR) | (sd_sph + delta_prev - radii - bound < _NEAR)
+    return np.where(near, ex_sph - sd_sph, np.minimum(delta_prev, ex_sph - sd_sph))
 
 
 def _polish_tips(hand: Hand, obj: ObjectModel, q, T_palm_object, iters: int = 10):

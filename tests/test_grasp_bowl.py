@@ -10,7 +10,7 @@ import trimesh
 from grasp_checks import contact_normals, force_closure_lp
 
 from regrasp_casadi.grasp_gen import SURFACE_TOL, generate_grasps, generate_regrasp_pairs
-from regrasp_casadi.grasp_nlp import _free_joint_step
+from regrasp_casadi.grasp_nlp import _free_joint_step, sphere_offsets
 from regrasp_casadi.grasp_workspace import clear_samples, clearance_grid, workspace
 from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.transforms import inv_T, make_T, transform_points
@@ -102,3 +102,16 @@ def test_free_joint_step_moves_the_tip_with_a_joint_held_at_its_limit():
     np.testing.assert_allclose(J @ (q_new - q), dp, atol=1e-7)  # 0.1 µm; the step is damped (1e-8)
     clipped = np.clip(q + dq_plain, q_lower, q_upper)
     assert np.linalg.norm(J @ (clipped - q) - dp) > 1e-5
+
+
+def test_a_sphere_held_at_its_bound_by_a_conservative_model_is_corrected():
+    """Inside the bowl the clearance model reads 5 mm less than the exact distance: a sphere held at its
+    bound (β + margin = 1.5 mm) is then 6.5 mm from the wall by exact distance, farther than `_NEAR`, and
+    must still get the exact offset (+5 mm) — else the rounds never free it. A far sphere whose model
+    is conservative keeps its offset (only tightening)."""
+    radii = np.array([0.0157, 0.0157, 0.0157])
+    bound = 1.5e-3
+    ex = radii + np.array([6.5e-3, 30e-3, 3e-3])  # held at the bound, far, near
+    sd = ex - np.array([5e-3, 5e-3, -1e-3])  # conservative, conservative, optimistic
+    delta = sphere_offsets(ex, sd, np.zeros(3), radii, bound)
+    np.testing.assert_allclose(delta, [5e-3, 0.0, -1e-3], atol=1e-12)
