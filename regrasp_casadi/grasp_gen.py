@@ -13,8 +13,10 @@ A generated grasp G = (X, o, Θ) satisfies, checked with the *exact* mesh distan
 
 How (one attempt): sample an object pose in front of the palm (an orientation aligned with the object's
 oriented bounding box plus a random tilt, a random position where the fingertip workspaces reach it),
-pick one contact target per finger among sampled surface points that the finger can reach (tip
-workspace samples over the joint limits), with the fingers on one side and the thumb (`hand.thumb`)
+pick one contact target per finger among sampled surface points that the finger can reach with its
+links clear of the object (tip workspace samples over the joint limits whose non-tip spheres clear a
+grid of the object's distance bound at that pose, `grasp_workspace`; the start joints come from the same
+samples, so no link starts across a thin wall), with the fingers on one side and the thumb (`hand.thumb`)
 opposite them, keeping only target sets that are themselves in force closure, then solve the grasp NLP
 of `grasp_nlp` (tips on the smooth surface, other spheres clear, with exact-distance corrections and a
 final Newton polish of the tips on the exact distance). The NLP is built once per (hand, object, β) and
@@ -35,7 +37,6 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from regrasp_casadi.certificates import force_closure_certificate
 from regrasp_casadi.constants import BETA, MU, SELF_CLEARANCE
@@ -43,6 +44,14 @@ from regrasp_casadi.errors import GraspError
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.grasp_feasibility import TIP_SPACING, UngraspableError, check_graspable
 from regrasp_casadi.grasp_nlp import SURFACE_TOL, GraspNLP, grasp_nlp, solve_exact
+from regrasp_casadi.grasp_workspace import (
+    ClearanceGrid,
+    ClearSamples,
+    Workspace,
+    clear_samples,
+    clearance_grid,
+    workspace,
+)
 from regrasp_casadi.hand import Hand
 from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.stability import FRICTION_EDGES, force_closure_quality, torque_reference
@@ -59,7 +68,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-_N_WORKSPACE = 20000  # joint samples for the fingertip workspaces
 _N_SURFACE = 3000  # surface samples for contact targets
 _REACH_TOL = 0.006  # a target is reachable if a workspace sample lies within this distance, m
 _TIP_SPACING = TIP_SPACING  # minimum distance between two fingertip targets, m (0.03)
@@ -132,33 +140,6 @@ _STATS: collections.Counter = collections.Counter()
 
 
 # ------------------------------------------------------------------------------ sampling helpers
-@dataclass
-class _Workspace:
-    """Joint samples over the limits and, per finger, tip centres (palm frame) with a KD-tree."""
-
-    Q: NDArray[np.float64]  # (N, n)
-    tips: dict[str, NDArray[np.float64]]  # finger -> (N, 3)
-    trees: dict[str, cKDTree]
-
-
-_WORKSPACES: dict[int, tuple[Hand, _Workspace]] = {}
-
-
-def _workspace(hand: Hand) -> _Workspace:
-    hit = _WORKSPACES.get(id(hand))
-    if hit is not None and hit[0] is hand:
-        return hit[1]
-    rng = np.random.default_rng(12345)
-    Q = rng.uniform(hand.q_lower, hand.q_upper, size=(_N_WORKSPACE, hand.n_joints))
-    m = len(hand.fingers)
-    out = np.asarray(hand.tip_positions_function().map(_N_WORKSPACE)(Q.T))  # (3, N*m)
-    T = out.reshape(3, _N_WORKSPACE, m)
-    tips = {f: np.ascontiguousarray(T[:, :, i].T) for i, f in enumerate(hand.fingers)}
-    ws = _Workspace(Q, tips, {f: cKDTree(v) for f, v in tips.items()})
-    _WORKSPACES[id(hand)] = (hand, ws)
-    return ws
-
-
 def _random_rotation(rng: np.random.Generator) -> NDArray[np.float64]:
     qv = rng.normal(size=4)
     w, x, y, z = qv / np.linalg.norm(qv)
@@ -259,13 +240,15 @@ class _Away(NamedTuple):
 @dataclass(frozen=True)
 class _Search:
     """What the attempts of a generation share: the models, the grasp NLP, the object's surface samples,
-    the hand's workspace samples and the friction coefficient of the force-closure tests."""
+    the hand's workspace samples, the object's clearance grid and the friction coefficient of the
+    force-closure tests."""
 
     hand: Hand
     obj: ObjectModel
     nlp: GraspNLP
     data: _ObjectData
-    ws: _Workspace
+    ws: Workspace
+    grid: ClearanceGrid
     mu: float
 
 
@@ -273,14 +256,19 @@ def _search(hand: Hand, obj: ObjectModel, mu: float, beta: float, self_clearance
     """The (cached) NLP and samples of (`hand`, `obj`, β = `beta` m, `self_clearance` m or None) and
     friction `mu`."""
     return _Search(hand, obj, grasp_nlp(hand, obj, beta, self_clearance), _object_data(hand, obj),
-                   _workspace(hand), mu)
+                   workspace(hand), clearance_grid(obj), mu)
 
 
-def _pick_targets(search: _Search, T, rng, away: _Away | None, tries: int = 12):
-    """Target indices whose own contacts (surface points, face normals) are in force closure."""
+def _pick_targets(search: _Search, clear: dict[str, ClearSamples], T, rng, away: _Away | None,
+                  tries: int = 12):
+    """Target indices whose own contacts (surface points, face normals) are in force closure, each
+    reachable by a workspace sample of `clear` (links clear of the object at pose T)."""
     data = search.data
+    reach = _Reach.at(search.hand, data, clear, T, away)
+    if reach is None:
+        return None
     for _ in range(tries):
-        idx = _pick_targets_once(search.hand, data, search.ws, T, rng, away)
+        idx = _pick_targets_once(search.hand, reach, rng)
         if idx is not None and force_closure_quality(data.points[idx], data.normals[idx],
                                                      search.mu * _CONE_SHRINK, data.com,
                                                      data.length) > _PRECHECK * _MIN_QUALITY:
@@ -288,31 +276,47 @@ def _pick_targets(search: _Search, T, rng, away: _Away | None, tries: int = 12):
     return None
 
 
-def _pick_targets_once(hand: Hand, data: _ObjectData, ws: _Workspace, T, rng, away: _Away | None):
-    """Contact targets (surface point, normal) per finger, object frame; None if none fit.
+class _Reach(NamedTuple):
+    """The surface samples in the palm frame at one object pose — points P (s, 3), normals N (s, 3),
+    tip-centre goals P + r·N (m) — and, per finger, the indices of the samples it can reach."""
+
+    P: NDArray[np.float64]
+    N: NDArray[np.float64]
+    goals: NDArray[np.float64]
+    by_finger: dict[str, NDArray[np.int64]]
+
+    @staticmethod
+    def at(hand: Hand, data: _ObjectData, clear: dict[str, ClearSamples], T, away: _Away | None):
+        """The reach at pose T (4, 4): a goal within `_REACH_TOL` of a clear workspace sample's tip (and,
+        with `away`, ≥ its distance from the finger's initial contact); None if a finger reaches none."""
+        P = transform_points(T, data.points)
+        N = data.normals @ T[:3, :3].T
+        goals = P + hand.tip_radius * N
+        by_finger = {}
+        for i, f in enumerate(hand.fingers):
+            dist, _ = clear[f].nearest(goals, 1)
+            ok = dist <= _REACH_TOL
+            if away is not None:
+                ok &= np.linalg.norm(data.points - away.contacts_object[i], axis=1) >= away.min_mean_distance
+            by_finger[f] = np.nonzero(ok)[0]
+            if len(by_finger[f]) == 0:
+                return None
+        return _Reach(P, N, goals, by_finger)
+
+
+def _pick_targets_once(hand: Hand, reach: _Reach, rng):
+    """Contact targets (surface sample indices) per finger among those each finger can reach; None if
+    none fit.
 
     The non-thumb fingers get reachable targets ≥ `_TIP_SPACING` apart; the thumb gets a reachable target
     whose inward line of action passes near the fingers' centroid and whose normal opposes theirs.
     """
     fingers = list(hand.fingers)
     thumb = hand.thumb if hand.thumb is not None else fingers[-1]  # no thumb in the metadata: the last
-    r = hand.tip_radius
-    P = transform_points(T, data.points)
-    N = data.normals @ T[:3, :3].T
-    goals = P + r * N
-    reach = {}
-    for f in fingers:
-        dist, _ = ws.trees[f].query(goals, k=1)
-        ok = dist <= _REACH_TOL
-        if away is not None:
-            dd = np.linalg.norm(data.points - away.contacts_object[fingers.index(f)], axis=1)
-            ok &= dd >= away.min_mean_distance
-        reach[f] = np.nonzero(ok)[0]
-        if len(reach[f]) == 0:
-            return None
+    P, N, goals = reach.P, reach.N, reach.goals
     chosen: dict[str, int] = {}
     for f in (f for f in fingers if f != thumb):
-        cand = reach[f]
+        cand = reach.by_finger[f]
         for i in chosen.values():
             cand = cand[np.linalg.norm(goals[cand] - goals[i], axis=1) >= _TIP_SPACING]
         if chosen:
@@ -325,7 +329,7 @@ def _pick_targets_once(hand: Hand, data: _ObjectData, ws: _Workspace, T, rng, aw
     centroid = P[fi].mean(axis=0)
     n_fingers = N[fi].mean(axis=0)
     n_fingers /= max(np.linalg.norm(n_fingers), 1e-9)
-    cand = reach[thumb]
+    cand = reach.by_finger[thumb]
     gap = np.min(np.linalg.norm(goals[cand][:, None] - goals[fi][None], axis=2), axis=1)
     cand = cand[gap >= _TIP_SPACING]
     cand = cand[N[cand] @ n_fingers <= -0.5]
@@ -339,14 +343,15 @@ def _pick_targets_once(hand: Hand, data: _ObjectData, ws: _Workspace, T, rng, aw
     return idx
 
 
-def _initial_q(hand, ws, goals_palm, rng) -> NDArray[np.float64]:
-    """Joint guess: each finger from a workspace sample near its target (random among the 8 nearest)."""
+def _initial_q(hand, ws: Workspace, clear: dict[str, ClearSamples], goals_palm, rng) -> NDArray[np.float64]:
+    """Joint guess: each finger from a workspace sample of `clear` (its links clear of the object) whose
+    tip is near the finger's target (goals_palm (m, 3), palm frame, m): random among the 8 nearest."""
     q = 0.5 * (hand.q_lower + hand.q_upper)
     for i, f in enumerate(hand.fingers):
-        _, j = ws.trees[f].query(goals_palm[i], k=8)
-        pick = int(np.atleast_1d(j)[rng.integers(len(np.atleast_1d(j)))])
+        _, j = clear[f].nearest(goals_palm[i], 8)
+        j = np.atleast_1d(j)
         idx = np.asarray(hand.finger_joints[f])
-        q[idx] = ws.Q[pick, idx]
+        q[idx] = ws.Q[int(j[rng.integers(len(j))]), idx]
     return q
 
 
@@ -355,12 +360,13 @@ def _attempt(search: _Search, rng, guess, away: _Away | None) -> Grasp | None:
     """One attempt (the module docstring's "How"): a grasp, or None (the reason counted in `_STATS`)."""
     hand, obj, nlp, data, mu = search.hand, search.obj, search.nlp, search.data, search.mu
     T0 = _sample_pose(hand, obj, data, rng, guess)
-    idx = _pick_targets(search, T0, rng, away)
+    clear = clear_samples(search.ws, search.grid, T0)
+    idx = _pick_targets(search, clear, T0, rng, away)
     if idx is None:
         _STATS["no_targets"] += 1
         return None
     targets_obj = data.points[idx] + hand.tip_radius * data.normals[idx]
-    q0 = _initial_q(hand, search.ws, transform_points(T0, targets_obj), rng)
+    q0 = _initial_q(hand, search.ws, clear, transform_points(T0, targets_obj), rng)
     check, why_not = solve_exact(nlp, targets_obj, q0, T0)
     if check is None:
         _STATS[why_not] += 1

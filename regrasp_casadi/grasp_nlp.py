@@ -12,7 +12,12 @@ For tip-centre targets x_r + r_tip n_r (object frame) and a pose prior (R₀, t�
 
 with t = t₀ + δt, R(a) = R₀·Cay(a) (Cayley map), sd the smooth signed distance of `ObjectModel`
 (τ = 2 mm), sd_c its coarse clearance variant (≤ 16 planes per piece) and δ = d_exact − sd at the previous
-solution (a local correction, `solver.correct_offsets`). The self-collision constraint (self-clearance c,
+solution (a local correction, `solver.correct_offsets`): every tip, and every non-tip sphere within
+`_NEAR` (5 mm) of the object or of its constraint's bound, gets that offset (either sign); the others only
+tighten. (A sphere held at its bound by a conservative model must be corrected even when its exact
+clearance exceeds 5 mm: inside the bowl the coarse model is 2–8 mm conservative, more than the ≤ 3.9 mm
+the distal link's sphere — radius 15.7 mm, 7.1 mm behind the 14 mm tip sphere — has to spare, so an
+uncorrected bound makes the exact-tip rounds infeasible.) The self-collision constraint (self-clearance c,
 None: none) is over `Hand.self_collision_pairs(within=c)`, one smooth minimum per rigid-body pair
 (`Hand.sphere_pair_distance_function`); it is exact (no offsets), and a grasp counts only when every pair of
 `Hand.self_collision_pairs()` keeps c. Later rounds re-centre the pose prior and q_ref
@@ -41,7 +46,7 @@ from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.self_collision import SelfCollisionConstraint
 from regrasp_casadi.transforms import inv_T, make_T, transform_points
 
-__all__ = ["SURFACE_TOL", "GraspNLP", "GraspSolution", "grasp_nlp", "solve_exact"]
+__all__ = ["SURFACE_TOL", "GraspNLP", "GraspSolution", "grasp_nlp", "solve_exact", "sphere_offsets"]
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +56,7 @@ _MARGIN = 5e-4  # extra clearance demanded of the smooth distance of non-tip sph
 _SELF_MARGIN = 2e-4  # extra self-clearance demanded in the NLP (the tips' Newton polish moves the fingers), m
 _SCALE = 0.01  # length scale of the objective, m
 _CORRECTION_ROUNDS = 5
+_NEAR = 5e-3  # a non-tip sphere this close to the object, or to its constraint's bound, is corrected, m
 _CLEARANCE_PLANES = 16  # planes per piece of the coarse distance used for the non-tip spheres
 _TAU = 2e-3  # smoothing temperature of the NLP's distance, m (the exact-minus-smooth offset removes its bias)
 _SOLVER_OPTIONS = _solver.SolverOptions(max_iter=100, tol=1e-10, acceptable_tol=None, acceptable_iter=None,
@@ -208,27 +214,29 @@ def solve_exact(nlp: GraspNLP, targets_obj: NDArray[np.float64], q0: NDArray[np.
     def params(rnd: _Round):
         return nlp.pack(targets_obj, rnd)
 
-    def evaluate(x, rnd: _Round) -> GraspSolution:
+    def exact_at(x, rnd: _Round):
         tips_obj, sph_obj, sd_tip, sd_sph = (np.asarray(v) for v in nlp.eval_points(x, params(rnd)))
-        ex_tip = obj.exact_signed_distance(tips_obj.T)
-        ex_sph = obj.exact_signed_distance(sph_obj.T)
+        return (obj.exact_signed_distance(tips_obj.T), obj.exact_signed_distance(sph_obj.T), sd_tip.ravel(),
+                sd_sph.ravel())
+
+    def evaluate(x, rnd: _Round) -> GraspSolution:
+        ex_tip, ex_sph, sd_tip, sd_sph = exact_at(x, rnd)
         tip_ok = np.all(np.abs(ex_tip - r) <= 0.5 * SURFACE_TOL)
         sph_ok = np.all(ex_sph - nlp.radii >= nlp.beta + 2e-4)
         if sph_ok and not tip_ok and np.max(np.abs(ex_tip - r)) < 2e-3:
             q_pol = _polish_tips(hand, obj, x[: nlp.n], nlp.pose(x, rnd.R0, rnd.t0))
-            if q_pol is not None:
-                x = np.concatenate([q_pol, x[nlp.n:]])
-                tip_ok = True
+            if q_pol is not None:  # the polish moves the fingers: it counts only if the spheres stay clear
+                x_pol = np.concatenate([q_pol, x[nlp.n:]])
+                if np.all(exact_at(x_pol, rnd)[1] - nlp.radii >= nlp.beta + 2e-4):
+                    x, tip_ok = x_pol, True
         self_ok = nlp.self_clear(x[: nlp.n])
-        return GraspSolution(x, nlp.pose(x, rnd.R0, rnd.t0), ex_tip, ex_sph, sd_tip.ravel(), sd_sph.ravel(),
+        return GraspSolution(x, nlp.pose(x, rnd.R0, rnd.t0), ex_tip, ex_sph, sd_tip, sd_sph,
                              bool(tip_ok and sph_ok and self_ok))
 
     def new_round(x, c: GraspSolution, rnd: _Round) -> _Round:
         log.debug("tip error %.3g mm, min clearance %.3g mm", 1e3 * np.max(np.abs(c.ex_tip - r)),
                   1e3 * np.min(c.ex_sph - nlp.radii))
-        # spheres near the object get the exact-minus-smooth offset (either sign); far ones only tighten
-        near = c.ex_sph - nlp.radii < 0.005
-        delta_sph = np.where(near, c.ex_sph - c.sd_sph, np.minimum(rnd.delta_sph, c.ex_sph - c.sd_sph))
+        delta_sph = sphere_offsets(c.ex_sph, c.sd_sph, rnd.delta_sph, nlp.radii, nlp.beta + _MARGIN)
         # polish: re-centre the pose prior on the solution and pull q towards it (a proximal term), so
         # the tips stay where the offsets were measured and the correction converges
         T_cur = c.T_palm_object
@@ -249,25 +257,69 @@ def solve_exact(nlp: GraspNLP, targets_obj: NDArray[np.float64], q0: NDArray[np.
     return corr.evaluation, ""
 
 
-def _polish_tips(hand: Hand, obj: ObjectModel, q, T_palm_object, iters: int = 6):
+def sphere_offsets(ex_sph, sd_sph, delta_prev, radii, bound: float) -> NDArray[np.float64]:
+    """The non-tip spheres' offsets δ (k,) m for the next round, from the exact and smooth distances of
+    their centres (k,) m at the last solution, the offsets it was solved with (k,) m, their radii (k,) m
+    and the constraint's bound β + margin (m): a sphere within `_NEAR` of the object by exact clearance,
+    or whose constraint sd + δ − ρ was within `_NEAR` of the bound, gets δ = d_exact − sd (either sign);
+    the others keep min(δ, d_exact − sd) (they only tighten, so a far sphere is not freed where the model
+    is conservative)."""
+    ex_sph, sd_sph, delta_prev = (np.asarray(v, float) for v in (ex_sph, sd_sph, delta_prev))
+    near = (ex_sph - radii < _NEAR) | (sd_sph + delta_prev - radii - bound < _NEAR)
+    return np.where(near, ex_sph - sd_sph, np.minimum(delta_prev, ex_sph - sd_sph))
+
+
+def _polish_tips(hand: Hand, obj: ObjectModel, q, T_palm_object, iters: int = 10):
     """Newton steps on the exact distance: move each tip centre along its contact normal by
-    −(d_exact − r_tip) with a damped least-norm step of its finger's joints. Returns q, or None if the
-    tips do not reach `SURFACE_TOL` / 2 within joint limits."""
+    −(d_exact − r_tip) with a damped least-norm step of its finger's joints that are free to move
+    (`_free_joint_step`: a joint at a limit that the step would push past is held there, so a finger at
+    a limit still corrects with its other joints). Returns q, or None if the tips do not reach
+    `SURFACE_TOL` / 2 within `iters` steps."""
     q = np.array(q, float)
     T_object_palm = inv_T(T_palm_object)
-    R = np.asarray(T_palm_object)[:3, :3]
+    R_palm_object = np.asarray(T_palm_object)[:3, :3]
+    q_lower, q_upper = np.asarray(hand.q_lower, float), np.asarray(hand.q_upper, float)
     for _ in range(iters):
-        tips = transform_points(T_object_palm, np.asarray(hand.tip_positions(q)).reshape(-1, 3))
-        closest, d = obj.closest_points(tips)
+        p_object_tips = transform_points(T_object_palm, np.asarray(hand.tip_positions(q)).reshape(-1, 3))
+        p_object_closest, d = obj.closest_points(p_object_tips)
         err = np.asarray(d) - hand.tip_radius
         if np.max(np.abs(err)) <= 0.5 * SURFACE_TOL:
             return q
         for i, f in enumerate(hand.fingers):
-            v = tips[i] - closest[i]
+            v = p_object_tips[i] - p_object_closest[i]
             nv = np.linalg.norm(v)
-            n_obj = v / nv if nv > 1e-9 else obj.surface_normals(tips[i:i + 1])[0]
+            n_object = v / nv if nv > 1e-9 else obj.surface_normals(p_object_tips[i:i + 1])[0]
             idx = np.asarray(hand.finger_joints[f])
-            J = np.asarray(hand.tip_jacobian(q, f))[:, idx]
-            dq = J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(3), -err[i] * (R @ n_obj))
-            q[idx] = np.clip(q[idx] + dq, np.asarray(hand.q_lower)[idx], np.asarray(hand.q_upper)[idx])
+            J_palm = np.asarray(hand.tip_jacobian(q, f))[:, idx]
+            q[idx] = _free_joint_step(J_palm, -err[i] * (R_palm_object @ n_object), q[idx], q_lower[idx],
+                                      q_upper[idx])
     return None
+
+
+def _free_joint_step(J, dp, q, q_lower, q_upper, damping: float = 1e-8):
+    """q + dq, dq the damped least-norm solution of J dq = dp (J (3, k), dp (3,) palm frame, m) over the
+    joints not held at a limit: a joint the step would push past its limit is set to that limit and the
+    rest of dp recomputed without it (at most k passes). With fewer than three free joints only the
+    component of dp along its own direction is asked for (one row, n̂ᵀ J dq = |dp|)."""
+    q = np.array(q, float)
+    free = np.ones(len(q), bool)
+    for _ in range(len(q)):
+        if not np.any(free):
+            return q
+        Jf = J[:, free]
+        if np.count_nonzero(free) < 3 and np.linalg.norm(dp) > 0:
+            u = dp / np.linalg.norm(dp)
+            row = u @ Jf
+            dq_f = row * (np.linalg.norm(dp) / (row @ row + damping))
+        else:
+            dq_f = Jf.T @ np.linalg.solve(Jf @ Jf.T + damping * np.eye(3), dp)
+        q_new = q.copy()
+        q_new[free] += dq_f
+        over = free & ((q_new < q_lower) | (q_new > q_upper))
+        if not np.any(over):
+            return q_new
+        q_held = np.clip(q_new[over], q_lower[over], q_upper[over])
+        dp = dp - J[:, over] @ (q_held - q[over])  # what the held joints' part-steps already move
+        q[over] = q_held
+        free &= ~over
+    return q
