@@ -104,7 +104,8 @@ def test_self_clearance_is_routed_to_both_nlps():
 def box_pair(hand):
     """A regrasp pair on a box generated with the self-clearance (grasp generation's constraint)."""
     obj = ObjectModel.box((0.05, 0.07, 0.12))
-    ((g0, gg),) = generate_regrasp_pairs(hand, obj, 1, seed=0)
+    ((g0, gg),) = generate_regrasp_pairs(hand, obj, 1, seed=2)  # seed 2: a pair whose ring tip can be planted
+    # into the middle tip (the planted-finger tests below; grasp_gen at d7c26ae, seed 0 gave -0.45 mm)
     return obj, g0, gg
 
 
