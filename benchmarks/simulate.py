@@ -11,8 +11,9 @@ set in force closure; "gravity": one plan per condition, certified to hold the o
 condition's gravity, "force_closure" for "off"); each is judged by `verify` (its own tolerances).
 Executed closed loop on the object's pose (`SimOptions.feedback`, default; ``--feedback none``: open
 loop). ``--workers N`` plans and executes N (problem, stability, method) jobs in parallel. ``--mu`` and
-``--min-margin`` set the certified planner's friction and least force-closure margin (a force reserve:
-`HoldingOptions.mu`, `min_margin`). Each plan is executed in four
+``--min-margin`` set the certified planner's friction and least force-closure margin, ``--max-normal-force``
+the gravity certificate's bound per finger (a force reserve: `HoldingOptions.mu`, `min_margin`,
+`max_normal_force`). Each plan is executed in four
 conditions (gravity in the palm frame, m/s²; the Allegro palm faces +x, its fingers point along +z):
 off (0, 0, 0), fingers up (0, 0, −9.81), palm up (−9.81, 0, 0), palm down (+9.81, 0, 0), and on request
 "support": per problem, gravity pressing the object onto the fingers opposite the thumb in the initial
@@ -285,6 +286,8 @@ def _args(argv):
     ap.add_argument("--workers", type=int, default=1, help="plans planned and executed in parallel")
     ap.add_argument("--mu", type=float, default=None, help="the certified planner's friction (HoldingOptions.mu)")
     ap.add_argument("--min-margin", type=float, default=None, help="its least force-closure margin ε")
+    ap.add_argument("--max-normal-force", type=float, default=None,
+                    help="the gravity certificate's bound on each normal force, N (HoldingOptions)")
     ap.add_argument("--out", type=pathlib.Path, default=None, help="JSON file for the records")
     ap.add_argument("--plot", action="store_true", help="deviation over time, next to --out (.png)")
     return ap.parse_args(argv)
@@ -305,7 +308,8 @@ def _job(job: tuple) -> tuple[list[dict], list[dict], list[dict]]:
         runs = [("force_closure" if c == "off" else "gravity", [c]) for c in args.conditions]
     heads, records, step_records = [], [], []
     for kind, conditions in runs:
-        holding = {k: v for k, v in (("mu", args.mu), ("min_margin", args.min_margin)) if v is not None}
+        holding = {k: v for k, v in (("mu", args.mu), ("min_margin", args.min_margin),
+                                     ("max_normal_force", args.max_normal_force)) if v is not None}
         plan, verified, plan_s = make_plan(problem, method, kind, args.gait_order,
                                            condition_gravity(conditions[0], problem), mass, holding)
         head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,
