@@ -436,6 +436,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--address", default=None,
                         help="--backend ray: address of a running Ray cluster (None: start a local one)")
     parser.add_argument("--max-iters", type=int, default=50, help="planner iteration limit")
+    parser.add_argument("--stability", choices=("force_closure", "gravity", "none"), default=None,
+                        help="PlannerOptions.stability (default: the planner's, force_closure; none: the "
+                             "paper's planner)")
     parser.add_argument("--out-dir", type=pathlib.Path, default=HERE / "results", help="folder of the results")
     parser.add_argument("--problems-dir", type=pathlib.Path, default=HERE / "problems",
                         help="cache of generated pairs (problem files)")
@@ -480,7 +483,8 @@ def main(argv: list[str] | None = None) -> int:
     runs: list[dict] = []
     t_plans = time.perf_counter()
     results = plan_many([paths[n][k] for n, k in labels], backend=args.backend, workers=args.workers,
-                        address=args.address, methods=args.methods, max_iters=args.max_iters)
+                        address=args.address, methods=args.methods, max_iters=args.max_iters,
+                        **({"stability": args.stability} if args.stability else {}))
     plans_time = time.perf_counter() - t_plans
     env["load_1min_after"] = os.getloadavg()[0]
     for r in results:
@@ -490,6 +494,7 @@ def main(argv: list[str] | None = None) -> int:
     summary["throughput"] = throughput(len(results), plans_time, cores)
     result = {"environment": env, "settings": {"seed": SEED, "pairs": args.pairs, "methods": args.methods,
                                                "objects": args.objects, "max_iters": args.max_iters,
+                                               "stability": args.stability,
                                                "success_error": ZETA, "backend": args.backend,
                                                "workers": args.workers, "address": args.address},
               "pair_generation_time": gen_times, "total_time": time.perf_counter() - t_start,
