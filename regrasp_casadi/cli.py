@@ -201,8 +201,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
     out, html = check_output("--out", args.out), check_output("--html", args.html)
     if args.view:
         check_host(args.host)
-    stability, gravity = plan_stability(args.stability, args.gravity)
+    plan_stability(args.stability, args.gravity)  # bad flags fail before the problem loads
     problem = RegraspProblem.load(args.problem)
+    stability, gravity = plan_stability(args.stability, args.gravity, problem.gravity)
     t0 = time.perf_counter()
     progress = progress_enabled(args)
     plan = _run_plan(problem, args.method, args.max_iters, progress, stability, gravity)
@@ -490,8 +491,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="certificate every step must have: force closure of the holding fingers (default), "
                          "gravity hold of the object's weight (--gravity), or none (the paper's planner)")
     sp.add_argument("--gravity", nargs="+", metavar="X Y Z|support",
-                    help="gravity of --stability gravity (implied), palm frame, m/s^2 (default 0 0 -9.81); "
-                         "'support': pressing the object onto the fingers opposite the thumb")
+                    help="gravity of --stability gravity (implied), palm frame, m/s^2 (default: the problem "
+                         "file's gravity, else 0 0 -9.81); 'support': pressing the object onto the fingers "
+                         "opposite the thumb")
     sp.add_argument("--out", default="plan.json", metavar="PLAN.json", help="plan file to write")
     sp.add_argument("--html", metavar="REPLAY.html", help="also write a self-contained HTML replay")
     sp.add_argument("--view", action="store_true", help="open the live viewer after planning")

@@ -121,14 +121,19 @@ def gravity_values(option: str, values: list[str] | None, words: tuple[str, ...]
     return g
 
 
-def plan_stability(stability: str | None, gravity: list[str] | None) -> tuple[str, tuple | str | None]:
-    """`regrasp plan`'s certificate and gravity from ``--stability`` and ``--gravity``: "force_closure"
-    by default, "gravity" when ``--gravity`` is given (X Y Z, or "support").
+def plan_stability(stability: str | None, gravity: list[str] | None,
+                   problem_gravity: tuple | str | None = None) -> tuple[str, tuple | str | None]:
+    """`regrasp plan`'s certificate and gravity from ``--stability``, ``--gravity`` and the problem file's
+    `gravity` (`problem_gravity`; ``--gravity`` wins): "force_closure" by default, "gravity" when a
+    gravity is given (X Y Z, or "support") and ``--stability`` does not say otherwise (an explicit
+    ``--stability`` other than gravity ignores the file's).
 
     Raises:
         UserError: ``--gravity`` with another ``--stability``, or a malformed ``--gravity``.
     """
     g = gravity_values("--gravity", gravity, ("support",))
+    if g is None and stability in (None, "gravity"):
+        g = problem_gravity
     stability = stability or ("gravity" if g is not None else "force_closure")
     if g is not None and stability != "gravity":
         raise UserError(f"--gravity sets the gravity certificate's direction: it needs --stability gravity, "

@@ -40,7 +40,7 @@ __all__ = ["RegraspProblem", "PROBLEM_SCHEMA_VERSION", "plan_models", "clear_mod
 PROBLEM_SCHEMA_VERSION = 1
 """Version of the problem-file schema; files must say `schema_version: 1`."""
 
-_TOP_KEYS = ("schema_version", "name", "description", "hand", "object", "grasp0", "grasp_goal")
+_TOP_KEYS = ("schema_version", "name", "description", "hand", "object", "grasp0", "grasp_goal", "gravity")
 _PRIMITIVE_DIMENSIONS = {  # the keys a problem file must give for each primitive (no silent defaults), m
     "box": ("extents",),
     "cylinder": ("radius", "height"),
@@ -237,6 +237,18 @@ def _object_mass(ctx: _Ctx, v: Any) -> float | None:
     return float(v["mass"])
 
 
+def _gravity(ctx: _Ctx, raw: dict) -> tuple[float, float, float] | str | None:
+    """The file's optional `gravity`: three numbers (m/s², palm frame), "support", or None."""
+    if "gravity" not in raw:
+        return None
+    if raw["gravity"] == "support":
+        return "support"
+    if isinstance(raw["gravity"], str):
+        raise ctx.error("gravity", f"expected [x, y, z] (m/s^2, palm frame) or 'support', "
+                                   f"got {raw['gravity']!r}")
+    return tuple(float(g) for g in _numbers(ctx, "gravity", raw["gravity"], 3))
+
+
 def _load_object(ctx: _Ctx, v: Any, base_dir: pathlib.Path) -> ObjectModel:
     from regrasp_casadi.objects import ObjectModel
 
@@ -324,6 +336,19 @@ class RegraspProblem:
     object_mass: float | None = None
     """The object's mass from the file's `object.mass`, kg (None: not stated; the planner's gravity
     certificate then uses the mesh volume × density, `certificates.object_mass`)."""
+    gravity: tuple[float, float, float] | str | None = None
+    """The file's `gravity`: (3,) m/s² in the palm frame, "support" (`gravity_palm` resolves it with
+    `hand_orientation.supporting_gravity`), or None (not stated). `regrasp plan` then certifies every
+    step for it (`stability="gravity"`)."""
+
+    @property
+    def gravity_palm(self) -> tuple[float, float, float] | None:
+        """The problem's gravity in the palm frame, m/s² ("support" resolved for grasp0), or None."""
+        if self.gravity != "support":
+            return self.gravity
+        from regrasp_casadi.hand_orientation import supporting_gravity
+
+        return tuple(float(g) for g in supporting_gravity(self.grasp0))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> RegraspProblem:
@@ -356,6 +381,7 @@ class RegraspProblem:
         hand = _load_hand(ctx, raw["hand"], base_dir)
         obj = _load_object(ctx, raw["object"], base_dir)
         mass = _object_mass(ctx, raw["object"])
+        gravity = _gravity(ctx, raw)
 
         g0 = _mapping(ctx, "grasp0", raw["grasp0"], ("joints", "T_palm_object"), ("joints", "T_palm_object"))
         q0 = _joints(ctx, "grasp0.joints", g0["joints"], hand)
@@ -370,7 +396,7 @@ class RegraspProblem:
         qg = _joints(ctx, "grasp_goal.joints", gg["joints"], hand) if "joints" in gg else None
         grasp_goal = _grasp(ctx, "grasp_goal",
                             lambda: Grasp.from_contacts(hand, obj, contacts, Tg, q=qg))
-        return cls(name, description, p, hand, obj, grasp0, grasp_goal, raw, mass)
+        return cls(name, description, p, hand, obj, grasp0, grasp_goal, raw, mass, gravity)
 
     def to_yaml_dict(self, base_dir: str | os.PathLike | None = None) -> dict:
         """The problem as a YAML-ready dict (the schema `load` reads; floats round-trip exactly).
@@ -413,6 +439,8 @@ class RegraspProblem:
             "object": obj_out,
             "grasp0": {"joints": _plain(g0.q), "T_palm_object": _plain(g0.T_palm_object)},
             "grasp_goal": goal,
+            **({} if self.gravity is None else {"gravity": _plain(self.gravity) if self.gravity != "support"
+                                                else "support"}),
         }
 
     def save(self, path: str | os.PathLike) -> pathlib.Path:

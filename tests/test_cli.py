@@ -307,3 +307,33 @@ def test_plan_gravity_support_is_the_supporting_direction(tmp_path, capsys, monk
     g_object = np.asarray(g0.T_palm_object)[:3, :3].T @ options["gravity_palm"]
     np.testing.assert_allclose(g_object, -9.81 * n_thumb, atol=1e-9)
     assert np.isclose(abs(n_thumb[0]), 1.0)  # the box's ±x face: the fingers' face is opposite (problem file)
+
+
+@pytest.mark.parametrize(("extra", "stability", "gravity"), [
+    ([], "gravity", (0.0, -9.81, 0.0)),                                    # the file's gravity
+    (["--gravity", "1", "2", "3"], "gravity", (1.0, 2.0, 3.0)),            # the flag wins
+    (["--stability", "force_closure"], "force_closure", None),             # an explicit certificate
+])
+def test_plan_takes_the_problem_files_gravity(extra, stability, gravity, tmp_path, monkeypatch):
+    """A problem file's `gravity` makes `regrasp plan` certify every step for it, unless ``--gravity``
+    gives another or ``--stability`` asks for another certificate."""
+    import yaml
+
+    import regrasp_casadi.planner as planner_mod
+    from regrasp_casadi.problem import RegraspProblem
+
+    doc = yaml.safe_load(PROBLEM.read_text())
+    doc["gravity"] = [0.0, -9.81, 0.0]
+    path = tmp_path / "with_gravity.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    problem = RegraspProblem.load(path)
+    calls = []
+
+    def fake_plan(grasp0, grasp_goal, progress=None, **options):
+        calls.append(options)
+        return _plan_from_problem(problem, "converged")
+
+    monkeypatch.setattr(planner_mod, "plan_regrasp", fake_plan)
+    cli.main(["plan", str(path), "--out", str(tmp_path / "p.json"), *extra])
+    (options,) = calls
+    assert options["stability"] == stability and options.get("gravity_palm") == gravity

@@ -102,6 +102,27 @@ def test_the_object_mass_is_read_and_written_and_kept_out_of_the_spec(folder, tm
     assert again.object_mass == 0.25 and again.obj.spec == problem.obj.spec
 
 
+def test_the_gravity_is_read_resolved_and_written(folder, tmp_path):
+    """`gravity`: absent (None), a palm-frame vector (kept as given), or "support" (kept as the word in
+    the file, resolved by `gravity_palm` to `hand_orientation.supporting_gravity` of grasp0); both
+    survive a save and load."""
+    from regrasp_casadi.hand_orientation import supporting_gravity
+
+    doc = copy.deepcopy(_valid_doc())
+    plain = RegraspProblem.load(_write(folder, doc, "nogravity.yaml"))
+    assert plain.gravity is None and plain.gravity_palm is None
+    doc["gravity"] = [0.0, -9.81, 0.0]
+    vector = RegraspProblem.load(_write(folder, doc, "gravity.yaml"))
+    assert vector.gravity == vector.gravity_palm == (0.0, -9.81, 0.0)
+    assert RegraspProblem.load(vector.save(tmp_path / "gravity_copy.yaml")).gravity == (0.0, -9.81, 0.0)
+    doc["gravity"] = "support"
+    support = RegraspProblem.load(_write(folder, doc, "support.yaml"))
+    assert support.gravity == "support"
+    np.testing.assert_allclose(support.gravity_palm, supporting_gravity(support.grasp0), atol=1e-12)
+    assert np.isclose(np.linalg.norm(support.gravity_palm), 9.81)
+    assert RegraspProblem.load(support.save(tmp_path / "support_copy.yaml")).gravity == "support"
+
+
 def _set(doc, keys, value):
     target = doc
     for k in keys[:-1]:
@@ -144,6 +165,8 @@ def _set(doc, keys, value):
         (("description",), 5, "description: expected a string"),
         (("object", "mass"), -0.2, r"object.mass: expected a positive number \(kg\), got -0.2"),
         (("object", "mass"), "heavy", r"object.mass: expected a positive number \(kg\), got 'heavy'"),
+        (("gravity",), [0.0, -9.81], "gravity: expected 3 numbers, got 2"),
+        (("gravity",), "down", r"gravity: expected \[x, y, z\] \(m/s\^2, palm frame\) or 'support'"),
     ],
 )
 def test_errors_name_file_and_key(folder, keys, value, message):
