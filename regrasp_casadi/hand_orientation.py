@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from regrasp_casadi.certificates import GRAVITY
 from regrasp_casadi.grasp import Grasp
 
-__all__ = ["opposing_finger", "supporting_gravity"]
+__all__ = ["opposing_finger", "supporting_gravity", "pinned_opposer_hint"]
 
 
 def opposing_finger(grasp: Grasp) -> str:
@@ -64,6 +64,24 @@ def supporting_gravity(grasp: Grasp, finger: str | None = None, g: float = GRAVI
     n = _contact_normals(grasp)[fingers.index(finger)]
     R_palm_object = np.asarray(grasp.T_palm_object, float)[:3, :3]
     return float(g) * (R_palm_object @ -n)
+
+
+def pinned_opposer_hint(obj, fingers, step, zeta: float) -> str:
+    """For a force-closure plan that stopped short at `step` (a `PlanStep`: its contacts, object frame,
+    and their errors, m): "" unless the finger that alone opposes the others (outward surface normals of
+    `obj` at the contacts, `fingers` order) is still farther than `zeta` (m) from its goal; then a hint
+    (text) that force closure cannot move it and gravity can (`supporting_gravity`)."""
+    contact_error = np.asarray(step.contact_error, float)
+    n = np.asarray(obj.surface_normals(np.asarray(step.contacts_object, float)), float).reshape(-1, 3)
+    total = n.sum(axis=0)
+    scores = np.array([-float(row @ (total - row)) for row in n])
+    k = int(np.argmax(scores))
+    others = np.delete(n, k, axis=0)
+    if contact_error[k] <= zeta or np.any(others @ n[k] > 1e-6):  # another finger on its side, or it arrived
+        return ""
+    return (f"; the {fingers[k]} ({contact_error[k] * 1e3:.1f} mm from its goal) alone opposes the other "
+            f"fingers, so force closure can neither lift nor slide it: plan with stability='gravity' and "
+            f"gravity_palm=hand_orientation.supporting_gravity(grasp0) (regrasp plan --gravity support)")
 
 
 def _contact_normals(grasp: Grasp) -> NDArray[np.float64]:

@@ -24,6 +24,7 @@ from regrasp_casadi.final_moves import FinalMoves, decide_status, pose_distance,
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.grasp_metrics import slip_between
+from regrasp_casadi.hand_orientation import pinned_opposer_hint
 from regrasp_casadi.holding import STABILITY_KINDS, Holding, HoldingOptions
 from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
@@ -497,12 +498,14 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
         if watch.exhausted and run.start_staging():
             watch.stalled = 0  # the last resort gets `stall_limit` more iterations
         elif watch.exhausted:
+            hint = pinned_opposer_hint(run.obj, run.fingers, run.steps[-1], options.zeta) \
+                if options.stability == "force_closure" else ""
             if run.failures and len(run.steps) == n_steps_before:  # the last iteration could not move
                 return _make_plan(grasp0, grasp_goal, options, t_start, run, "solver_failure",
-                                  "; ".join(run.failures))
+                                  "; ".join(run.failures) + hint)
             return _make_plan(grasp0, grasp_goal, options, t_start, run, "stalled",
                               f"largest contact error {run.largest_error() * 1e3:.2f} mm > ζ: no progress in "
-                              f"the last {watch.stalled} iterations")
+                              f"the last {watch.stalled} iterations{hint}")
     return _finish(grasp0, grasp_goal, options, t_start, run)
 
 

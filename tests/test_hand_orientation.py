@@ -57,3 +57,28 @@ def test_supporting_gravity_lets_the_certified_planner_move_the_thumb(box_shift)
     assert plan.status == "converged", plan.status_detail
     assert verify(plan).ok
     assert start > 0.03 and plan.steps[-1].contact_error[thumb] <= plan.options["zeta"]
+
+
+def test_the_stall_hint_names_a_lone_opposing_thumb(box_shift):
+    """`pinned_opposer_hint`: the thumb 20 mm from its goal, alone on the −y face, gets the hint; no hint
+    once it is within ζ, nor when another finger shares its face (it could take over)."""
+    from types import SimpleNamespace
+
+    from regrasp_casadi.hand_orientation import pinned_opposer_hint
+
+    fingers = list(box_shift.hand.fingers)
+    contacts = np.array(box_shift.grasp0.contacts_object)
+    thumb = fingers.index("thumb")
+    error = np.zeros(len(fingers))
+    error[thumb] = 0.02
+    step = SimpleNamespace(contacts_object=contacts, contact_error=error)
+    hint = pinned_opposer_hint(box_shift.obj, fingers, step, 0.004)
+    assert "the thumb (20.0 mm from its goal) alone opposes" in hint and "supporting_gravity" in hint
+    arrived = SimpleNamespace(contacts_object=contacts, contact_error=np.full(len(fingers), 0.003))
+    assert pinned_opposer_hint(box_shift.obj, fingers, arrived, 0.004) == ""
+    shared = contacts.copy()
+    shared[fingers.index("ring")] = contacts[thumb] + [0.0, 0.0, 0.03]  # the ring on the thumb's face
+    ring_sd = box_shift.obj.exact_signed_distance(shared[fingers.index("ring")][None])[0]
+    assert ring_sd == pytest.approx(0.0, abs=1e-9)  # still on the surface
+    step = SimpleNamespace(contacts_object=shared, contact_error=error)
+    assert pinned_opposer_hint(box_shift.obj, fingers, step, 0.004) == ""
