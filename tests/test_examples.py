@@ -74,8 +74,19 @@ def _check_05(out: str, tmp_path: Path) -> None:
     assert (tmp_path / "replay.html").stat().st_size > 10_000
 
 
+def _check_06(out: str, tmp_path: Path) -> None:
+    (g,) = _vectors("thumb opposes the others; gravity (palm frame) {v} m/s^2", out)
+    assert np.linalg.norm(g) == pytest.approx(9.81, abs=1e-3)
+    steps, = _numbers(r"plan: converged, {n} steps", out)
+    largest, = _numbers(r"final contact error max {n} mm", out)
+    assert largest <= 6.0  # ζ
+    certified, total = _numbers(r"verify: ok; certified steps: {n} of {n}", out)
+    assert certified == total == steps
+    assert re.search(r"simulate: (held|deviating|dropped)", out)  # executed in MuJoCo under that gravity
+
+
 CHECKS = {"01_hand_kinematics": _check_01, "02_signed_distance": _check_02, "03_finger_gait": _check_03,
-          "04_in_grasp": _check_04, "05_plan_regrasp": _check_05}
+          "04_in_grasp": _check_04, "05_plan_regrasp": _check_05, "06_hold_under_gravity": _check_06}
 
 
 def test_examples_are_numbered_and_documented():
