@@ -17,7 +17,9 @@ The model (`regrasp_casadi.mujoco_model`) is built from the project's own hand a
    raised `lift_height` above the surface in mid-move) and lands again, while the others hold the
    planned object pose. The loop is closed on the object's pose (`SimOptions.feedback`, default
    "object_pose", `sim_feedback`): the holding tips move by the rigid correction that takes the simulated
-   object onto the plan, integrated; "none" executes open loop.
+   object onto the plan, integrated; "none" executes open loop. A second loop keeps each holding tip's
+   normal force at least at the grip's (`SimOptions.force_gain`, default 3/s, 0: off;
+   `sim_grip_feedback`, MuJoCo's contact forces as the sensor).
 3. **Hold** the last step for `hold_time`.
 
 Deviation = distance (mm) between the simulated and planned positions of the object's centre of mass,
