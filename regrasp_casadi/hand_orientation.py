@@ -41,10 +41,14 @@ __all__ = ["opposing_finger", "supporting_gravity", "pinned_opposer_hint"]
 def opposing_finger(grasp: Grasp) -> str:
     """The finger whose contact's outward normal is most opposed to the sum of the other fingers' (object
     frame): the one that alone opposes the others (the thumb of an Allegro precision grasp)."""
-    normals = _contact_normals(grasp)
-    total = normals.sum(axis=0)
-    scores = [-float(n @ (total - n)) for n in normals]
-    return grasp.hand.fingers[int(np.argmax(scores))]
+    return grasp.hand.fingers[_most_opposed(_contact_normals(grasp))]
+
+
+def _most_opposed(normals: NDArray) -> int:
+    """The row of the normal (m, 3) most opposed to the sum of the others: argmax_k −n_k · Σ_{j≠k} n_j."""
+    n = np.asarray(normals, float).reshape(-1, 3)
+    total = n.sum(axis=0)
+    return int(np.argmax([-float(row @ (total - row)) for row in n]))
 
 
 def supporting_gravity(grasp: Grasp, finger: str | None = None, g: float = GRAVITY) -> NDArray[np.float64]:
@@ -73,9 +77,7 @@ def pinned_opposer_hint(obj, fingers, step, zeta: float) -> str:
     (text) that force closure cannot move it and gravity can (`supporting_gravity`)."""
     contact_error = np.asarray(step.contact_error, float)
     n = np.asarray(obj.surface_normals(np.asarray(step.contacts_object, float)), float).reshape(-1, 3)
-    total = n.sum(axis=0)
-    scores = np.array([-float(row @ (total - row)) for row in n])
-    k = int(np.argmax(scores))
+    k = _most_opposed(n)
     others = np.delete(n, k, axis=0)
     if contact_error[k] <= zeta or np.any(others @ n[k] > 1e-6):  # another finger on its side, or it arrived
         return ""
