@@ -284,20 +284,27 @@ def test_plan_gravity_bad_input(extra, error, tmp_path, capsys):
     assert "--gravity" in line and error in line
 
 
-def test_plan_gravity_support_is_the_supporting_direction(tmp_path, capsys, monkeypatch):
-    """``--gravity support`` plans with the gravity certificate along `supporting_gravity` of the problem's
-    initial grasp (here the box's thumb face normal, reversed, in the palm frame)."""
+def _record_plan_calls(monkeypatch, problem) -> list[dict]:
+    """Replace the planner by one that records its options and returns `problem`'s one-step plan."""
     import regrasp_casadi.planner as planner_mod
-    from regrasp_casadi.problem import RegraspProblem
 
-    problem = RegraspProblem.load(PROBLEM)
-    calls = []
+    calls: list[dict] = []
 
     def fake_plan(grasp0, grasp_goal, progress=None, **options):
         calls.append(options)
         return _plan_from_problem(problem, "converged")
 
     monkeypatch.setattr(planner_mod, "plan_regrasp", fake_plan)
+    return calls
+
+
+def test_plan_gravity_support_is_the_supporting_direction(tmp_path, capsys, monkeypatch):
+    """``--gravity support`` plans with the gravity certificate along `supporting_gravity` of the problem's
+    initial grasp (here the box's thumb face normal, reversed, in the palm frame)."""
+    from regrasp_casadi.problem import RegraspProblem
+
+    problem = RegraspProblem.load(PROBLEM)
+    calls = _record_plan_calls(monkeypatch, problem)
     cli.main(["plan", str(PROBLEM), "--gravity", "support", "--out", str(tmp_path / "p.json")])
     (options,) = calls
     assert options["stability"] == "gravity"
@@ -319,21 +326,13 @@ def test_plan_takes_the_problem_files_gravity(extra, stability, gravity, tmp_pat
     gives another or ``--stability`` asks for another certificate."""
     import yaml
 
-    import regrasp_casadi.planner as planner_mod
     from regrasp_casadi.problem import RegraspProblem
 
     doc = yaml.safe_load(PROBLEM.read_text())
     doc["gravity"] = [0.0, -9.81, 0.0]
     path = tmp_path / "with_gravity.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
-    problem = RegraspProblem.load(path)
-    calls = []
-
-    def fake_plan(grasp0, grasp_goal, progress=None, **options):
-        calls.append(options)
-        return _plan_from_problem(problem, "converged")
-
-    monkeypatch.setattr(planner_mod, "plan_regrasp", fake_plan)
+    calls = _record_plan_calls(monkeypatch, RegraspProblem.load(path))
     cli.main(["plan", str(path), "--out", str(tmp_path / "p.json"), *extra])
     (options,) = calls
     assert options["stability"] == stability and options.get("gravity_palm") == gravity
