@@ -54,7 +54,7 @@ from regrasp_casadi.grasp_workspace import (
 )
 from regrasp_casadi.hand import Hand
 from regrasp_casadi.objects import ObjectModel
-from regrasp_casadi.stability import FRICTION_EDGES, force_closure_quality, torque_reference
+from regrasp_casadi.stability import FRICTION_EDGES, force_closure_quality, tangent_bases, torque_reference
 from regrasp_casadi.transforms import exp_so3, inv_T, make_T, transform_points
 
 __all__ = [
@@ -121,10 +121,7 @@ def open_fraction(mesh, points: NDArray[np.float64], normals: NDArray[np.float64
     """
     p = np.asarray(points, float)
     n = np.asarray(normals, float)
-    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    e1 = np.cross(n, helper)
-    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-    e2 = np.cross(n, e1)
+    e1, e2 = np.moveaxis(tangent_bases(n), 1, 0)  # (n, 3) each: (n, e1, e2) orthonormal
     dirs = []
     for a in np.radians(np.asarray(half_angles, float)):
         for b in (np.arange(per_ring) * 2 * np.pi / per_ring if a > 0 else [0.0]):

@@ -39,6 +39,7 @@ from scipy.optimize import linprog
 
 from regrasp_casadi.motion import interpolate_knots
 from regrasp_casadi.mujoco_model import SimOptions
+from regrasp_casadi.stability import tangent_basis
 from regrasp_casadi.transforms import interpolate_pose
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -187,13 +188,6 @@ def step_contacts(plan: Plan, hand) -> list[StepContacts]:
 
 
 # ------------------------------------------------------------------------------------------ grip forces
-def _tangents(n: NDArray) -> tuple[NDArray, NDArray]:
-    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    t1 = np.cross(n, a)
-    t1 /= np.linalg.norm(t1)
-    return t1, np.cross(n, t1)
-
-
 def _grip_lp(contacts: StepContacts, idx: NDArray, g_object: NDArray, mass: float, p_object_com: NDArray,
              opts: SimOptions, drag: tuple[int, NDArray] | None = None):
     """Matrices of the grip LP in the variables (c_n, c_1, c_2) per holding finger, then 12 slacks; `drag`
@@ -201,7 +195,7 @@ def _grip_lp(contacts: StepContacts, idx: NDArray, g_object: NDArray, mass: floa
     k = idx.size
     nv = 3 * k + 12
     mu = opts.grip_friction_fraction * opts.friction * np.cos(np.pi / 8)  # octagon inscribed in the cone
-    basis = [np.column_stack([-contacts.n_object[j], *_tangents(contacts.n_object[j])]) for j in idx]
+    basis = [np.column_stack([-contacts.n_object[j], *tangent_basis(contacts.n_object[j])]) for j in idx]
     if drag is not None and drag[0] in idx:
         basis[int(np.flatnonzero(idx == drag[0])[0])][:, 0] += drag[1]
     A_eq = np.zeros((6, nv))
