@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from regrasp_casadi.mujoco_model import SimModel, SimOptions
 
-__all__ = ["ObjectPoseFeedback", "rigid_tip_corrections"]
+__all__ = ["ObjectPoseFeedback", "TipOffsets", "rigid_tip_corrections"]
 
 _DAMPING = 1e-3  # m: damping of the least-squares solve J⁺ δ
 
@@ -40,17 +40,21 @@ def rigid_tip_corrections(T_plan: NDArray, T_sim: NDArray, p_tips: NDArray) -> N
     return p @ E[:3, :3].T + E[:3, 3] - p
 
 
-class ObjectPoseFeedback:
-    """The integral object-pose feedback of one simulation run (see the module docstring).
+class TipOffsets:
+    """Integral joint offsets of the holding fingertips, the part the simulation's feedback loops share:
+    per finger an offset Δq_m (n,) rad that grows by k · dt · w_m · step_m while the finger holds (holding
+    weight w_m > 0), decays by (1 − k dt) while it does not, and whose tip displacement J_m Δq_m is capped
+    at `limit` (anti wind-up). The tip centres and their position Jacobians come from MuJoCo (`mj_jac`),
+    in the palm frame. Subclasses compute the steps (`ObjectPoseFeedback`, `GripForceFeedback`).
 
     Args:
         sim: the compiled model (tip geoms, hand dof addresses); fingers: the plan's fingers, the order
-            of the holding weights; opts: `feedback_gain` k_I (1/s) and `feedback_limit` (m).
+            of the weights; opts: the palm's orientation; gain: k (1/s); limit: the tip reach cap (m).
     """
 
-    def __init__(self, sim: SimModel, fingers, opts: SimOptions) -> None:
+    def __init__(self, sim: SimModel, fingers, opts: SimOptions, gain: float, limit: float) -> None:
         self.sim, self.fingers = sim, tuple(fingers)
-        self.gain, self.limit = float(opts.feedback_gain), float(opts.feedback_limit)
+        self.gain, self.limit = float(gain), float(limit)
         self.R_palm_world = opts.R_world_palm.T
         self.offset = np.zeros((len(self.fingers), len(sim.dof_hand)))
         self._tip_geoms = np.array([sim.tip_geom[f] for f in self.fingers], dtype=int)
@@ -62,7 +66,6 @@ class ObjectPoseFeedback:
         contiguous = dof.size and np.array_equal(dof, np.arange(dof[0], dof[0] + dof.size))
         self._dof = slice(int(dof[0]), int(dof[0]) + dof.size) if contiguous else dof  # a view when possible
         self._rotate = not np.array_equal(self.R_palm_world, np.eye(3))  # else palm frame = world frame
-        self._damping = _DAMPING**2 * np.eye(3)
 
     def _tips(self, data: mujoco.MjData, rows: slice | NDArray) -> tuple[NDArray, NDArray]:
         """For the fingers ``rows`` (h of them): (tip centres (h, 3) palm frame, m; position Jacobians
@@ -76,6 +79,38 @@ class ObjectPoseFeedback:
             return p_world, J_world
         return p_world @ self.R_palm_world.T, self.R_palm_world @ J_world
 
+    def _holding_rows(self, hold: NDArray, dt: float) -> slice | NDArray | None:
+        """Decay the offsets of the fingers not in ``hold`` (m,) bool by (1 − k dt); the rows of those in
+        it (a slice when every finger holds: views, no gathers), None when none holds."""
+        if hold.all():
+            return slice(None)
+        self.offset[~hold] *= max(0.0, 1.0 - self.gain * dt)
+        return np.flatnonzero(hold) if hold.any() else None
+
+    def _advance(self, rows: slice | NDArray, J: NDArray, step: NDArray, w: NDArray, dt: float,
+                 per: float = 1.0) -> NDArray:
+        """Add k dt w_m step_m / per (step (h, n), weights w (m,); the result in rad) to the offsets of
+        ``rows``, cap each tip reach |J_m Δq_m| (J (h, 3, n)) at `limit`; returns the summed offsets (n,)
+        rad."""
+        offset = self.offset[rows] + (self.gain * dt * w[rows])[:, None] * step / per
+        reach = np.linalg.norm((J @ offset[:, :, None])[:, :, 0], axis=1)
+        offset *= (self.limit / np.maximum(reach, self.limit))[:, None]  # tip reach capped (× 1.0 below)
+        self.offset[rows] = offset
+        return self.offset.sum(axis=0)
+
+
+class ObjectPoseFeedback(TipOffsets):
+    """The integral object-pose feedback of one simulation run (see the module docstring).
+
+    Args:
+        sim: the compiled model (tip geoms, hand dof addresses); fingers: the plan's fingers, the order
+            of the holding weights; opts: `feedback_gain` k_I (1/s) and `feedback_limit` (m).
+    """
+
+    def __init__(self, sim: SimModel, fingers, opts: SimOptions) -> None:
+        super().__init__(sim, fingers, opts, opts.feedback_gain, opts.feedback_limit)
+        self._damping = _DAMPING**2 * np.eye(3)
+
     def update(self, data: mujoco.MjData, T_plan: NDArray, T_sim: NDArray, holding: NDArray,
                dt: float) -> NDArray:
         """Advance the integral by dt (s) and return the joint offsets (n,) rad, `hand.joint_names` order.
@@ -86,19 +121,11 @@ class ObjectPoseFeedback:
             holding: (m,) holding weight of each finger in [0, 1], ``fingers`` order.
         """
         w = np.asarray(holding, dtype=float)
-        hold = w > 0.0
-        rows: slice | NDArray = slice(None)  # every finger holds (most ticks): views, no gathers
-        if not hold.all():
-            self.offset[~hold] *= max(0.0, 1.0 - self.gain * dt)
-            rows = np.flatnonzero(hold)
-        if not hold.any():
+        rows = self._holding_rows(w > 0.0, dt)
+        if rows is None:
             return self.offset.sum(axis=0)
         p_tips, J = self._tips(data, rows)
         delta = rigid_tip_corrections(T_plan, T_sim, p_tips)  # (h, 3)
         J_T = np.swapaxes(J, 1, 2)
         step = (J_T @ np.linalg.solve(J @ J_T + self._damping, delta[:, :, None]))[:, :, 0]  # J⁺ δ
-        offset = self.offset[rows] + (self.gain * dt * w[rows])[:, None] * step
-        reach = np.linalg.norm((J @ offset[:, :, None])[:, :, 0], axis=1)
-        offset *= (self.limit / np.maximum(reach, self.limit))[:, None]  # tip reach capped (× 1.0 below)
-        self.offset[rows] = offset
-        return self.offset.sum(axis=0)
+        return self._advance(rows, J, step, w, dt)

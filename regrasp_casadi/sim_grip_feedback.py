@@ -29,12 +29,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.mujoco_model import SimModel, SimOptions
+from regrasp_casadi.sim_feedback import TipOffsets
 
 __all__ = ["GripForceFeedback"]
 
 
-class GripForceFeedback:
-    """The integral grip-force feedback of one simulation run (see the module docstring).
+class GripForceFeedback(TipOffsets):
+    """The integral grip-force feedback of one simulation run (see the module docstring; the integral,
+    its decay and its cap are `sim_feedback.TipOffsets`').
 
     Args:
         sim: the compiled model (tip geoms, hand dof addresses); fingers: the plan's fingers (the order of
@@ -42,20 +44,8 @@ class GripForceFeedback:
     """
 
     def __init__(self, sim: SimModel, fingers, opts: SimOptions) -> None:
-        self.sim, self.fingers = sim, tuple(fingers)
-        self.gain, self.kp = float(opts.force_gain), float(opts.kp)
-        self.limit = float(opts.force_limit_offset)
-        self.R_palm_world = opts.R_world_palm.T
-        self.offset = np.zeros((len(self.fingers), len(sim.dof_hand)))
-        nv = sim.model.nv
-        self._jacp, self._jacr = np.zeros((3, nv)), np.zeros((3, nv))
-
-    def _jacobian(self, data: mujoco.MjData, finger: str) -> NDArray:
-        """(3, n) position Jacobian of the finger's tip centre, palm frame, per hand joint."""
-        g = self.sim.tip_geom[finger]
-        mujoco.mj_jac(self.sim.model, data, self._jacp, self._jacr, data.geom_xpos[g],
-                      self.sim.model.geom_bodyid[g])
-        return self.R_palm_world @ self._jacp[:, self.sim.dof_hand]
+        super().__init__(sim, fingers, opts, opts.force_gain, opts.force_limit_offset)
+        self.kp = float(opts.kp)
 
     def update(self, data: mujoco.MjData, f_measured: NDArray, f_target: NDArray, n_palm: NDArray,
                holding: NDArray, dt: float) -> NDArray:
@@ -68,15 +58,12 @@ class GripForceFeedback:
             n_palm: (m, 3) outward contact normals, palm frame (unit);
             holding: (m,) holding weight of each finger in [0, 1]; all in ``fingers`` order.
         """
-        for m, finger in enumerate(self.fingers):
-            w = float(holding[m])
-            if w <= 0.0 or f_target[m] <= 0.0:
-                self.offset[m] *= max(0.0, 1.0 - self.gain * dt)
-                continue
-            J = self._jacobian(data, finger)
-            push = -np.asarray(n_palm[m], float) * max(float(f_target[m] - f_measured[m]), 0.0)
-            self.offset[m] += self.gain * dt * w * (J.T @ push) / self.kp
-            reach = float(np.linalg.norm(J @ self.offset[m]))
-            if reach > self.limit:
-                self.offset[m] *= self.limit / reach
-        return self.offset.sum(axis=0)
+        w, f_target = np.asarray(holding, dtype=float), np.asarray(f_target, dtype=float)
+        rows = self._holding_rows((w > 0.0) & (f_target > 0.0), dt)
+        if rows is None:
+            return self.offset.sum(axis=0)
+        _, J = self._tips(data, rows)
+        short = np.maximum(f_target - np.asarray(f_measured, dtype=float), 0.0)[rows]  # N
+        push = -np.asarray(n_palm, dtype=float)[rows] * short[:, None]  # (h, 3) palm frame, N
+        torque = (np.swapaxes(J, 1, 2) @ push[:, :, None])[:, :, 0]  # Jᵀ (−n) max(f* − f, 0), N·m
+        return self._advance(rows, J, torque, w, dt, per=self.kp)  # the offset that adds that torque
