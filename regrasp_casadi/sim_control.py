@@ -456,13 +456,13 @@ def joint_commands(plan: Plan, hand, opts: SimOptions, mass: float, p_object_com
     q_all = np.vstack([q_cmd, q0])  # one batch: the ticks, then step 0 gripping and not gripping
     grip_all = _Grip(*(None if a is None else np.concatenate([a, b])
                        for a, b in zip(grip, grip0, strict=True)))
-    q_all += _grip_offsets(hand, plan.fingers, opts, q_all, np.concatenate([T[:, :3, :3], R0]),
-                           np.concatenate([n_object, n0]), grip_all)
+    R_all, n_all = np.concatenate([T[:, :3, :3], R0]), np.concatenate([n_object, n0])
+    n_unit = n_all / np.maximum(np.linalg.norm(n_all, axis=2, keepdims=True), 1e-12)
+    n_palm = np.einsum("kij,kmj->kmi", R_all, n_unit)  # unit contact normals, palm frame
+    q_all += _grip_offsets(hand, plan.fingers, opts, q_all, R_all, n_palm, grip_all)
     q_cmd, q_grip0, q_start = q_all[:-2], q_all[-2], q_all[-1]
-    n_unit = n_object / np.maximum(np.linalg.norm(n_object, axis=2, keepdims=True), 1e-12)
-    press = np.maximum(-np.einsum("kmi,kmi->km", grip.F, n_unit), 0.0)  # the planned normal forces, N
-    n_palm = np.einsum("kij,kmj->kmi", T[:, :3, :3], n_unit)
-    return Commands(t, q_cmd, T, q_grip0, np.asarray(residual), q_start, grip.w, press, n_palm)
+    press = np.maximum(-np.einsum("kmi,kmi->km", grip.F, n_unit[:-2]), 0.0)  # the planned normal forces, N
+    return Commands(t, q_cmd, T, q_grip0, np.asarray(residual), q_start, grip.w, press, n_palm[:-2])
 
 
 class Commands(NamedTuple):
@@ -496,21 +496,19 @@ class _Grip(NamedTuple):
     normal (None or 0: no correction)."""
 
 
-def _grip_offsets(hand, fingers, opts: SimOptions, q: NDArray, R_palm_object: NDArray, n_object: NDArray,
+def _grip_offsets(hand, fingers, opts: SimOptions, q: NDArray, R_palm_object: NDArray, n_palm_all: NDArray,
                   grip: _Grip) -> NDArray:
     """(k, n) joint offsets at k instants (joints q (k, n) rad, object rotations R_palm_object (k, 3, 3)):
-    surface correction and grip of every finger plus the gait finger's lift; `n_object` (k, m, 3) the
-    contact normals (object frame, not necessarily unit), rows in `fingers` order. A term that does not
-    apply (no correction, no force, no squeeze, no lift) adds an exact zero."""
+    surface correction and grip of every finger plus the gait finger's lift; `n_palm_all` (k, m, 3) the
+    unit contact normals (palm frame), rows in `fingers` order. A term that does not apply (no
+    correction, no force, no squeeze, no lift) adds an exact zero."""
     J_tips = tip_jacobians(hand, fingers, q)
     dq = np.zeros(q.shape)
     R = R_palm_object
     lift = np.nan_to_num(grip.lift, nan=0.0)
     for m in range(len(fingers)):
         J = J_tips[:, m]
-        n_obj = n_object[:, m]
-        n_obj = n_obj / np.maximum(np.linalg.norm(n_obj, axis=1), 1e-12)[:, None]
-        n_palm = np.einsum("kij,kj->ki", R, n_obj)
+        n_palm = n_palm_all[:, m]
         if grip.surface is not None:
             dq += _dls(J, -grip.surface[:, m, None] * n_palm)
         if opts.grip == "balanced":
