@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from scipy.spatial import ConvexHull
 
 from regrasp_casadi.errors import GraspError
+from regrasp_casadi.grasp_workspace import joint_tip_samples
 
 __all__ = ["CONVEX_EXCESS", "TIP_SPACING", "UngraspableError", "HandReach", "hand_reach", "check_graspable",
            "narrowest_width"]
@@ -71,11 +72,7 @@ def hand_reach(hand) -> HandReach:
     hit = _REACH.get(id(hand))
     if hit is not None and hit[0] is hand:
         return hit[1]
-    rng = np.random.default_rng(7)
-    Q = rng.uniform(hand.q_lower, hand.q_upper, size=(_N_SAMPLES, hand.n_joints))
-    m = len(hand.fingers)
-    tips = np.asarray(hand.tip_positions_function().map(_N_SAMPLES)(Q.T)).reshape(3, _N_SAMPLES, m)
-    clouds = {f: tips[:, :, i].T for i, f in enumerate(hand.fingers)}
+    _, clouds = joint_tip_samples(hand, _N_SAMPLES, seed=7)
     thumb = hand.thumb if hand.thumb is not None else hand.fingers[-1]
     outer = {f: v[ConvexHull(v).vertices] for f, v in clouds.items()}
     d_max = max(float(np.max(np.linalg.norm(outer[thumb][:, None] - outer[f][None], axis=2)))

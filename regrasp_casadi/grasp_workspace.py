@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 from regrasp_casadi.transforms import inv_T, transform_points
 
 __all__ = ["N_WORKSPACE", "ClearSamples", "ClearanceGrid", "Workspace", "clear_samples", "clearance_grid",
-           "workspace"]
+           "joint_tip_samples", "workspace"]
 
 N_WORKSPACE = 20000
 """Joint samples of the fingertip workspaces."""
@@ -60,17 +60,21 @@ class Workspace:
 _WORKSPACES: dict[int, tuple[object, Workspace]] = {}
 
 
+def joint_tip_samples(hand, n: int, seed: int) -> tuple[NDArray[np.float64], dict[str, NDArray[np.float64]]]:
+    """`n` joint samples uniform over the limits (generator seeded with `seed`), (n, n_joints) rad, and per
+    finger the tip-sphere centres of those samples, (n, 3) palm frame, m (one mapped CasADi call)."""
+    rng = np.random.default_rng(seed)
+    Q = rng.uniform(hand.q_lower, hand.q_upper, size=(n, hand.n_joints))
+    T = np.asarray(hand.tip_positions_function().map(n)(Q.T)).reshape(3, n, len(hand.fingers))  # (3, n, m)
+    return Q, {f: np.ascontiguousarray(T[:, :, i].T) for i, f in enumerate(hand.fingers)}
+
+
 def workspace(hand) -> Workspace:
     """The `Workspace` of `hand` (computed once per hand object)."""
     hit = _WORKSPACES.get(id(hand))
     if hit is not None and hit[0] is hand:
         return hit[1]
-    rng = np.random.default_rng(12345)
-    Q = rng.uniform(hand.q_lower, hand.q_upper, size=(N_WORKSPACE, hand.n_joints))
-    m = len(hand.fingers)
-    out = np.asarray(hand.tip_positions_function().map(N_WORKSPACE)(Q.T))  # (3, N*m)
-    T = out.reshape(3, N_WORKSPACE, m)
-    tips = {f: np.ascontiguousarray(T[:, :, i].T) for i, f in enumerate(hand.fingers)}
+    Q, tips = joint_tip_samples(hand, N_WORKSPACE, seed=12345)
     spheres, radii = {}, {}
     for f in hand.fingers:
         radii[f] = np.asarray(hand.sphere_radii(f), float)
