@@ -7,8 +7,8 @@ friction along its motion (`holding.Holding.slide`; the figures below were measu
 as frictionless). In most regrasps that slide is not certified at all: with the other fingers where they
 are, or at their goals, a frictionless thumb on its path from its contact to its goal leaves the grasp
 without force closure (measured on the shipped problems: margins −0.03 to −0.17 along the path, both
-with the others where they start and with them at their goals). The greedy round then stalls: the other fingers reach
-their goals and the thumb stays where it is.
+with the others where they start and with them at their goals). The greedy round then stalls: the other
+fingers reach their goals and the thumb stays where it is.
 
 The way out is a detour of the other fingers. This module searches, in contact space (force closure
 depends on the contacts only, not on the hand's configuration), for a *support configuration*: contacts
