@@ -12,8 +12,8 @@ condition's gravity, "force_closure" for "off"); each is judged by `verify` (its
 Executed closed loop on the object's pose (`SimOptions.feedback`, default; ``--feedback none``: open
 loop). ``--workers N`` plans and executes N (problem, stability, method) jobs in parallel. ``--mu`` and
 ``--min-margin`` set the certified planner's friction and least force-closure margin, ``--max-normal-force``
-the gravity certificate's bound per finger (a force reserve: `HoldingOptions.mu`, `min_margin`,
-`max_normal_force`). Each plan is executed in four
+and ``--min-normal-force`` the gravity certificate's bounds per finger (a force reserve: `HoldingOptions.mu`,
+`min_margin`, `max_normal_force`, `min_normal_force`). Each plan is executed in four
 conditions (gravity in the palm frame, m/s²; the Allegro palm faces +x, its fingers point along +z):
 off (0, 0, 0), fingers up (0, 0, −9.81), palm up (−9.81, 0, 0), palm down (+9.81, 0, 0), and on request
 "support": per problem, gravity pressing the object onto the fingers opposite the thumb in the initial
@@ -286,6 +286,10 @@ def _args(argv):
     ap.add_argument("--workers", type=int, default=1, help="plans planned and executed in parallel")
     ap.add_argument("--mu", type=float, default=None, help="the certified planner's friction (HoldingOptions.mu)")
     ap.add_argument("--min-margin", type=float, default=None, help="its least force-closure margin ε")
+    ap.add_argument("--min-normal-force", type=float, default=None,
+                    help="the gravity certificate's least normal force of every holding finger, N (HoldingOptions)")
+    ap.add_argument("--min-load-share", type=float, default=None,
+                    help="the gravity certificate's least normal force as a share of m g / k, k holding fingers")
     ap.add_argument("--max-normal-force", type=float, default=None,
                     help="the gravity certificate's bound on each normal force, N (HoldingOptions)")
     ap.add_argument("--out", type=pathlib.Path, default=None, help="JSON file for the records")
@@ -309,7 +313,9 @@ def _job(job: tuple) -> tuple[list[dict], list[dict], list[dict]]:
     heads, records, step_records = [], [], []
     for kind, conditions in runs:
         holding = {k: v for k, v in (("mu", args.mu), ("min_margin", args.min_margin),
-                                     ("max_normal_force", args.max_normal_force)) if v is not None}
+                                     ("max_normal_force", args.max_normal_force),
+                                     ("min_normal_force", args.min_normal_force),
+                                     ("min_load_share", args.min_load_share)) if v is not None}
         plan, verified, plan_s = make_plan(problem, method, kind, args.gait_order,
                                            condition_gravity(conditions[0], problem), mass, holding)
         head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,

@@ -221,6 +221,10 @@ class GravityHold:
     """Bound on each normal force, N."""
     sliding: NDArray[np.bool_] | None = None
     """(k,) bool, contacts that slide (frictionless)."""
+    min_normal_force: float = 0.0
+    """Least normal force of every contact in the forces that hold the weight itself, N (a reserve: a
+    contact that carries almost nothing is lost to the least disturbance; the weight scale s of the
+    margin is computed without it)."""
 
     def __post_init__(self) -> None:
         weight = np.asarray(self.weight, float).reshape(3)
@@ -252,14 +256,17 @@ class GravityHold:
         return float(max(
             np.max(np.abs(f.sum(axis=0) + self.weight)),
             np.max(np.abs(np.cross(c - self.center, f).sum(axis=0))),
-            np.max(-a), np.max(a - self.max_normal_force), np.max(tangential - self.mu_i * a),
+            np.max(self.min_normal_force - a), np.max(a - self.max_normal_force),
+            np.max(tangential - self.mu_i * a),
         ))
 
 
 def _socp_hold(hold: GravityHold, E, B, a_col, scale_free: bool):
-    """Clarabel: forces x (local variables) with E B x + s·wrench = 0 (scale_free: maximise s ≥ 0) or
-    E B x = −wrench (minimise ‖x‖²), 0 ≤ a_i ≤ f_max, (μ_i a_i, u_i, v_i) ∈ SOC₃. -> (x, s) or None."""
+    """Clarabel: forces x (local variables) with E B x + s·wrench = 0 (scale_free: maximise s ≥ 0,
+    0 ≤ a_i ≤ f_max) or E B x = −wrench (minimise ‖x‖², f_min ≤ a_i ≤ f_max), (μ_i a_i, u_i, v_i) ∈ SOC₃.
+    -> (x, s) or None."""
     mu_i, wrench, f_max = hold.mu_i, hold.wrench, float(hold.max_normal_force)
+    f_min = 0.0 if scale_free else float(hold.min_normal_force)
     import clarabel
     from scipy import sparse
 
@@ -273,7 +280,7 @@ def _socp_hold(hold: GravityHold, E, B, a_col, scale_free: bool):
     for j in a_col:
         lo, hi = np.zeros(nv), np.zeros(nv)
         lo[j], hi[j] = -1.0, 1.0
-        nonneg += [(lo, 0.0), (hi, f_max)]
+        nonneg += [(lo, -f_min), (hi, f_max)]
     if scale_free:
         e = np.zeros(nv)
         e[-1] = -1.0
@@ -307,7 +314,7 @@ def _socp_hold(hold: GravityHold, E, B, a_col, scale_free: bool):
 def _lp_hold(hold: GravityHold, E, length, n_edges, scale_free: bool):
     """HiGHS fallback with inscribed linearised cones: forces Σ_j β_ij e_ij (β ≥ 0, e_ij the edges of
     unit normal force), Σ_j β_ij ≤ f_max; maximise s (scale_free) or minimise the largest normal force
-    for the weight itself. -> (stacked forces (3k,), s) or None."""
+    for the weight itself, with Σ_j β_ij ≥ f_min. -> (stacked forces (3k,), s) or None."""
     normals, contacts, mu_i = hold.normals, hold.contacts, hold.mu_i
     center, wrench, f_max = hold.center, hold.wrench, float(hold.max_normal_force)
     from scipy.optimize import linprog
@@ -331,6 +338,10 @@ def _lp_hold(hold: GravityHold, E, length, n_edges, scale_free: bool):
     else:  # minimise z: E F β = −wrench, Σ_j β_ij ≤ z ≤ f_max
         A_eq, b_eq, b_ub = np.hstack([E @ F, np.zeros((6, 1))]), -wrench, np.zeros(k)
         A_ub[:, -1] = -1.0
+        A_low = np.zeros((k, ne + 1))  # −Σ_j β_ij ≤ −f_min
+        A_low[owner, np.arange(ne)] = -1.0
+        A_ub = np.vstack([A_ub, A_low])
+        b_ub = np.concatenate([b_ub, np.full(k, -float(hold.min_normal_force))])
         c[-1] = 1.0
         bounds = [(0, None)] * ne + [(0, f_max)]
     res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs")
@@ -346,7 +357,8 @@ def gravity_certificate(hold: GravityHold, solver: Literal["auto", "socp", "lp"]
     Finds contact forces f_i (on the object) with normal force a_i = −f_i·n_i ∈ [0, max_normal_force],
     tangential part ‖f_i + a_i n_i‖ ≤ μ_i a_i, Σ f_i + weight = 0 and Σ (c_i − center) × f_i = 0.
     margin = the largest s for which s·weight can be held (held ⇔ s ≥ 1); forces = the least-norm
-    forces (min Σ‖f_i‖²) for the weight itself, (k, 3), N, object frame.
+    forces (min Σ‖f_i‖²) for the weight itself, (k, 3), N, object frame, each normal force at least
+    `min_normal_force` (held ⇔ s ≥ 1 and such forces exist).
 
     Args:
         hold: the contacts, friction, weight and force bound.
@@ -383,7 +395,10 @@ def gravity_certificate(hold: GravityHold, solver: Literal["auto", "socp", "lp"]
     w = float(np.linalg.norm(hold.weight))
     detail = f"{'holds' if ok else 'cannot hold'} {w:.3g} N with {len(c)} contacts ({solver}): scale {s:.3g}"
     if ok:
-        detail += f", largest normal force {float(np.max(-np.sum(forces * hold.normals, axis=1))):.3g} N"
+        a = -np.sum(forces * hold.normals, axis=1)
+        detail += f", normal forces {float(np.min(a)):.3g}–{float(np.max(a)):.3g} N"
+    elif best and best[1] >= 1:
+        detail += f", but not with every normal force ≥ {hold.min_normal_force:g} N"
     return Certificate("gravity", ok, s, forces, detail)
 
 
@@ -401,6 +416,7 @@ def certify_step(  # noqa: PLR0913 (the force-closure and the gravity data of a 
     length: float | None = None,
     sliding: NDArray[np.bool_] | None = None,
     max_normal_force: float = MAX_NORMAL_FORCE,
+    min_normal_force: float = 0.0,
     solver: Literal["auto", "socp", "lp"] = "auto",
 ) -> Certificate:
     """The certificate of the holding set of one step (for a gait: every finger but the moving one).
@@ -419,6 +435,8 @@ def certify_step(  # noqa: PLR0913 (the force-closure and the gravity data of a 
         length: torque scale L of ε, m (force closure; default the contacts' largest distance from center).
         sliding: (m,) bool, fingers that slide (frictionless contacts).
         max_normal_force: bound on each normal force, N (gravity).
+        min_normal_force: least normal force of every holding contact in the forces that hold the
+            weight, N (gravity; `GravityHold.min_normal_force`).
         solver: see `gravity_certificate`.
 
     Returns:
@@ -435,8 +453,8 @@ def certify_step(  # noqa: PLR0913 (the force-closure and the gravity data of a 
     if mass is None or gravity_object is None or center is None:
         raise ValueError("a gravity certificate needs mass (kg), gravity_object (m/s²) and center (COM)")
     weight = float(mass) * np.asarray(gravity_object, float).reshape(3)
-    cert = gravity_certificate(GravityHold(c[holding], n[holding], weight, center, mu_i, max_normal_force),
-                               solver)
+    cert = gravity_certificate(GravityHold(c[holding], n[holding], weight, center, mu_i, max_normal_force,
+                                           min_normal_force=min_normal_force), solver)
     if cert.forces is None:
         return cert
     forces = np.zeros((len(c), 3))

@@ -74,6 +74,13 @@ class HoldingOptions:
     """Friction coefficient of the planner's certificates (verify uses its own)."""
     max_normal_force: float = MAX_NORMAL_FORCE
     """Bound on each contact's normal force of the gravity certificate, N."""
+    min_normal_force: float = 0.0
+    """Gravity: every holding finger presses with at least this in the certificate's forces, N. A finger
+    that carries almost nothing is lost to the least tilt (a position-controlled support tips over it);
+    0: no reserve. Verify checks the plain certificate (its own μ and force bound)."""
+    min_load_share: float = 0.0
+    """Gravity: every holding finger presses with at least this fraction of an equal share of the weight,
+    m g / k for k holding fingers (the least normal force is the larger of this and `min_normal_force`)."""
     density: float = DENSITY
     """Object density when the problem states no mass, kg/m³ (mass = mesh volume × density)."""
     min_margin: float = 1e-3
@@ -249,9 +256,11 @@ class Holding:
         o = self.options
         if self.kind == "gravity":
             solver = "auto" if n_edges == FRICTION_EDGES else "lp"
+            f_min = max(o.min_normal_force, o.min_load_share * self.mass * float(np.linalg.norm(
+                self.gravity_palm)) / max(int(np.sum(hold)), 1))
             return certify_step(contacts, normals, hold, "gravity", o.mu, self.mass,
                                 T[:3, :3].T @ self.gravity_palm, center=self.com, sliding=sliding,
-                                max_normal_force=o.max_normal_force, solver=solver)
+                                max_normal_force=o.max_normal_force, min_normal_force=f_min, solver=solver)
         mu_i = contact_mu(o.mu, len(contacts), sliding)[hold]
         eps = force_closure_quality(contacts[hold], normals[hold], mu_i, self.com, self.length, n_edges)
         ok = bool(eps > FORCE_CLOSURE_TOL)

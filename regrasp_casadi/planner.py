@@ -128,6 +128,8 @@ class PlannerOptions:
         "self_clearance": ("finger_gait", "in_grasp"),
         "mu": ("holding",),
         "max_normal_force": ("holding",),
+        "min_normal_force": ("holding",),
+        "min_load_share": ("holding",),
         "min_margin": ("holding",),
         "slide": ("holding",),
         "lookahead": ("holding",),

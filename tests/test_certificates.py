@@ -142,6 +142,33 @@ def test_three_contacts_under_the_object_carry_a_third_each():
         assert not away.ok and away.forces is None and away.margin == pytest.approx(0.0, abs=1e-6)
 
 
+@pytest.mark.parametrize("solver", ["socp", "lp"])
+def test_least_normal_force_rejects_a_support_that_tips_over_one_finger(solver):
+    # centre of mass in the contact plane at barycentric (0.6, 0.3, 0.1) of the three contacts: statics
+    # alone fixes the normal forces at λ_i m g (tangential forces in the plane make no torque about
+    # in-plane axes), so a least normal force f_min holds iff f_min ≤ 0.1 m g; the weight scale does not
+    # depend on it
+    mass = 0.2
+    c, n = _triangle_on_bottom(h=0.0)
+    lam = np.array([0.6, 0.3, 0.1])
+    weight = np.array([0.0, 0.0, -mass * GRAVITY])
+    plain = gravity_certificate(GravityHold(c, n, weight, lam @ c, 0.5, 10.0), solver=solver)
+    assert plain.ok
+    np.testing.assert_allclose(-plain.forces @ n[0], lam * mass * GRAVITY, atol=1e-5)
+    low = gravity_certificate(GravityHold(c, n, weight, lam @ c, 0.5, 10.0, min_normal_force=0.09 * mass
+                                          * GRAVITY), solver=solver)
+    assert low.ok and low.margin == pytest.approx(plain.margin, rel=1e-6)
+    np.testing.assert_allclose(-low.forces @ n[0], lam * mass * GRAVITY, atol=1e-5)
+    f_min = 0.11 * mass * GRAVITY
+    high = gravity_certificate(GravityHold(c, n, weight, lam @ c, 0.5, 10.0, min_normal_force=f_min),
+                               solver=solver)
+    assert not high.ok and high.forces is None and high.margin == pytest.approx(plain.margin, rel=1e-6)
+    assert f"not with every normal force ≥ {f_min:g} N" in high.detail
+    # the plain forces violate the stricter hold by the missing 0.01 m g on the third finger
+    assert GravityHold(c, n, weight, lam @ c, 0.5, 10.0, min_normal_force=f_min).violation(
+        plain.forces) == pytest.approx(0.01 * mass * GRAVITY, abs=1e-5)
+
+
 @pytest.mark.parametrize("alpha", [0.0, 0.3, 0.6])
 @pytest.mark.parametrize("mu, sliding", [(0.5, False), (0.5, True), (0.8, False)])
 def test_tray_holds_a_tilted_weight_iff_tan_alpha_within_mu(alpha, mu, sliding):

@@ -82,3 +82,36 @@ def test_the_stall_hint_names_a_lone_opposing_thumb(box_shift):
     assert ring_sd == pytest.approx(0.0, abs=1e-9)  # still on the surface
     step = SimpleNamespace(contacts_object=shared, contact_error=error)
     assert pinned_opposer_hint(box_shift.obj, fingers, step, 0.004) == ""
+
+
+def test_a_load_share_keeps_every_holding_finger_pressing():
+    """`HoldingOptions.min_load_share`: in every certified step of a gravity plan of box_rotate (supporting
+    gravity, μ 0.4, ≤ 3 N per finger), each holding finger's normal force in the stored certificate is at
+    least share · m g / k (k holding fingers), recomputed here from the forces and the exact contact
+    normals of the plan's tip positions; verify (its own certificate) passes."""
+    from regrasp_casadi.planner import plan_regrasp
+    from regrasp_casadi.verify import verify
+
+    problem = RegraspProblem.load(PROBLEMS / "box_rotate.yaml")
+    g0, share = problem.grasp0, 0.5
+    g_palm = supporting_gravity(g0)
+    mass = problem.object_mass or problem.obj.mesh.volume * 500.0
+    plan = plan_regrasp(g0, problem.grasp_goal, stability="gravity", gravity_palm=tuple(g_palm),
+                        object_mass=problem.object_mass, mu=0.4, max_normal_force=3.0, min_load_share=share)
+    assert plan.status == "converged", plan.status_detail
+    assert verify(plan).ok
+    fingers, checked = list(plan.fingers), 0
+    for step in plan.steps:
+        if step.kind == "slide":  # the slider's certificate normal is tilted by its drag
+            continue
+        T = np.asarray(step.T_palm_object)
+        tips = (problem.hand.tip_positions(step.q) - T[:3, 3]) @ T[:3, :3]
+        contacts, _ = problem.obj.closest_points(tips)
+        normals = (tips - contacts) / np.linalg.norm(tips - contacts, axis=1, keepdims=True)
+        holding = [f != step.finger for f in fingers] if step.kind == "gait" else [True] * len(fingers)
+        forces = np.asarray(step.certificate["forces"], float)
+        pressing = -np.sum(forces * normals, axis=1)[holding]
+        assert step.certificate["ok"]
+        assert pressing.min() >= share * mass * np.linalg.norm(g_palm) / sum(holding) - 1e-5, step.kind
+        checked += step.kind == "gait"
+    assert checked > 0
