@@ -338,10 +338,11 @@ def _lp_hold(hold: GravityHold, E, length, n_edges, scale_free: bool):
     else:  # minimise z: E F β = −wrench, Σ_j β_ij ≤ z ≤ f_max
         A_eq, b_eq, b_ub = np.hstack([E @ F, np.zeros((6, 1))]), -wrench, np.zeros(k)
         A_ub[:, -1] = -1.0
-        A_low = np.zeros((k, ne + 1))  # −Σ_j β_ij ≤ −f_min
-        A_low[owner, np.arange(ne)] = -1.0
-        A_ub = np.vstack([A_ub, A_low])
-        b_ub = np.concatenate([b_ub, np.full(k, -float(hold.min_normal_force))])
+        if hold.min_normal_force > 0:  # −Σ_j β_ij ≤ −f_min
+            A_low = np.zeros((k, ne + 1))
+            A_low[owner, np.arange(ne)] = -1.0
+            A_ub = np.vstack([A_ub, A_low])
+            b_ub = np.concatenate([b_ub, np.full(k, -float(hold.min_normal_force))])
         c[-1] = 1.0
         bounds = [(0, None)] * ne + [(0, f_max)]
     res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs")
