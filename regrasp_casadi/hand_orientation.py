@@ -5,8 +5,11 @@ others cannot move that finger under a force-closure certificate: the others sit
 and are not in force closure without it, so it cannot lift; and a slide drags the object with kinetic
 friction μ·f_n that the others' friction (at most μ·f_n, the normal forces being equal) cannot balance
 with any margin, the drag and the others' friction acting on opposite faces and making a couple
-(`tests/test_stability.py`). Every shipped problem's goal moves the thumb by 3–5 cm, and the certified
-planner (`stability="force_closure"`) stalls on all of them.
+(`tests/test_stability.py`). That is exact when the others' contacts all face the opposing finger
+squarely (one face of a box); where they spread over curved or adjacent faces some slides certify, but
+not enough: on box_shift (svd) four certified thumb slides bring the thumb from 31 to 17 mm of its goal
+and the plan stops there. Every shipped problem's goal moves the thumb by 3–5 cm, and the certified
+planner (`stability="force_closure"`) converges on none of them.
 
 Under gravity the weight can do the thumb's work: oriented so that gravity presses the object onto the
 fingers that oppose the thumb, those fingers carry it while the thumb slides or lifts, and the gravity
@@ -82,7 +85,8 @@ def pinned_opposer_hint(obj, fingers, step, zeta: float) -> str:
     if contact_error[k] <= zeta or np.any(others @ n[k] > 1e-6):  # another finger on its side, or it arrived
         return ""
     return (f"; the {fingers[k]} ({contact_error[k] * 1e3:.1f} mm from its goal) alone opposes the other "
-            f"fingers, so force closure can neither lift nor slide it: plan with stability='gravity' and "
+            f"fingers, so force closure lets it lift only when the others alone are in force closure and "
+            f"slide only where their friction balances its drag: plan with stability='gravity' and "
             f"gravity_palm=hand_orientation.supporting_gravity(grasp0) (regrasp plan --gravity support)")
 
 
