@@ -11,24 +11,24 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, fields, replace
-from typing import TYPE_CHECKING, ClassVar, Literal, TypeVar
+from dataclasses import replace
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from regrasp_casadi.certificates import GRAVITY, Certificate
+from regrasp_casadi.certificates import Certificate
 from regrasp_casadi.certified_round import accept_gait, certified_round
-from regrasp_casadi.constants import ZETA
 from regrasp_casadi.final_moves import FinalMoves, decide_status, pose_distance, run_final_moves
-from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
+from regrasp_casadi.finger_gait import FingerGaitNLP
 from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.grasp_metrics import slip_between
 from regrasp_casadi.hand_orientation import pinned_opposer_hint
-from regrasp_casadi.holding import STABILITY_KINDS, Holding, HoldingOptions
-from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target
+from regrasp_casadi.holding import STABILITY_KINDS, Holding
+from regrasp_casadi.in_grasp import InGraspNLP, svd_target
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.plan import Plan, PlanStep
+from regrasp_casadi.planner_options import PlannerOptions
 from regrasp_casadi.solver import NLPCache
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories, motion_context, step_path
@@ -44,129 +44,6 @@ _log = logging.getLogger(__name__)
 
 ProgressCallback = Callable[[int, int, float], None]
 _NLP = TypeVar("_NLP")
-
-
-@dataclass(frozen=True)
-class PlannerOptions:
-    """Options of `plan_regrasp`; the paper's values are the defaults (SI units).
-
-    The knobs of the two NLPs are their own options, held here (`finger_gait`, `in_grasp`); the common
-    ones can be given to `plan_regrasp` / `with_overrides` by name (``eta=0.008``, ``beta=...``), see
-    `OVERRIDES`.
-    """
-
-    method: Literal["svd", "sd"] = "svd"
-    """OPT2's E_des: "svd" (target pose by Kabsch, `in_grasp.svd_target`) or "sd" (distance to the
-    workspace hulls)."""
-    zeta: float = ZETA
-    """ζ, threshold on the largest contact error, m (paper: 6 mm)."""
-    max_iters: int = 50
-    """Largest number of gait/reposing iterations (paper: 50)."""
-    gait: tuple[str, ...] | None = None
-    """Gait pattern P (finger order); None: the paper's rule (see `gait_pattern`)."""
-    gait_order: Literal["pattern", "stability", "search"] = "pattern"
-    """"pattern": the fingers of P in its order (the paper; with `stability` on, the next finger of P
-    whose lift is certified); "stability": each next gait is the finger of P, not yet moved in this
-    iteration, whose lift leaves the other fingers with the largest force-closure margin
-    (`stability.holding_quality`, μ = 0.5); "search" (needs `stability` on): the certified lift with
-    the best progress + margin score (`_Run.search_score`)."""
-    stability: Literal["force_closure", "gravity", "none"] = "force_closure"
-    """The certificate every step must have (`holding`): "force_closure" of the fingers that hold the
-    object, "gravity" (they hold its weight, `gravity_palm` × `object_mass`), or "none" (the paper: no
-    stability test, the plans of the paper's algorithm). With a certificate, a finger whose lift is
-    not certified waits for a later turn of the round or slides (`holding.slide`), and every step stores
-    its certificate (`PlanStep.certificate`)."""
-    gravity_palm: tuple[float, float, float] = (0.0, 0.0, -GRAVITY)
-    """Gravitational acceleration in the palm frame, m/s² (stability "gravity")."""
-    object_mass: float | None = None
-    """The object's mass, kg (stability "gravity"; None: mesh volume × `holding.density`); a problem
-    file states it as `object.mass` (`RegraspProblem.object_mass`)."""
-    holding: HoldingOptions = field(default_factory=HoldingOptions)
-    """The stability checks' and sliding steps' options (μ, margins, slide step, lookahead)."""
-    final_move: bool = True
-    """Finish with in-grasp moves to the desired object pose (Algorithm 1, last lines; `final_moves`:
-    each accepted move brings the object closer to it)."""
-    final_time_budget: float = 60.0
-    """Time the final in-grasp moves may take, s (as many moves as fit; each is bounded by the OPT2
-    trust region)."""
-    final_pose_tol: float = 5e-4
-    """Stop the final moves when the object is this close to the desired pose, m
-    (`final_moves.pose_distance`: translation plus rotation angle times the object's radius)."""
-    final_min_gain: float = 2e-5
-    """A final move that brings the object less than this closer to the desired pose ends them, m."""
-    pose_tol_position: float = 2e-3
-    """A "converged" plan's object is within this distance of the desired position, m."""
-    pose_tol_rotation: float = float(np.radians(2.0))
-    """... and within this angle of the desired orientation, rad (2°)."""
-    stall_tol: float = 1e-3
-    """An iteration makes progress when the largest contact error drops by more than this, m (a gait
-    moves a tip up to η = 10 mm: less than 1 mm means the fingers are blocked where they are)."""
-    stall_escape: int = 2
-    """After this many iterations without progress, reposings move towards the desired object pose
-    (an addition to the paper: the desired grasp is feasible there, so its contacts become reachable)."""
-    stall_limit: int = 10
-    """After this many iterations without progress the plan stops with status "stalled"."""
-    skip_tol: float = 1e-4
-    """A finger whose contact is this close to its goal is not moved, m."""
-    finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)
-    """OPT1's options (η, β, exact-contact tolerance, ...)."""
-    in_grasp: InGraspOptions = field(default_factory=InGraspOptions)
-    """OPT2's options (k1, k2, β, trust region, ...)."""
-    trajectories: bool = True
-    """Give every step its motion from the step before (`trajectory.attach_trajectories`: lift-off,
-    transit and touch-down of gaits, reposing paths; β and self-clearance of the finger gait); False:
-    static steps only."""
-
-    OVERRIDES: ClassVar[dict[str, tuple[str, ...]]] = {
-        "eta": ("finger_gait",),
-        "surface_tol": ("finger_gait",),
-        "k_pos": ("in_grasp",),
-        "k_orient": ("in_grasp",),
-        "beta": ("finger_gait", "in_grasp"),
-        "tau": ("finger_gait", "in_grasp"),
-        "print_level": ("finger_gait", "in_grasp"),
-        "self_clearance": ("finger_gait", "in_grasp"),
-        "mu": ("holding",),
-        "max_normal_force": ("holding",),
-        "min_normal_force": ("holding",),
-        "min_load_share": ("holding",),
-        "min_margin": ("holding",),
-        "slide": ("holding",),
-        "lookahead": ("holding",),
-    }
-    """Keyword overrides that set fields of the NLPs' options: name → the sub-options that get it."""
-
-    def __post_init__(self) -> None:
-        if self.gait is not None:  # a list from the CLI or JSON: stored as a tuple
-            object.__setattr__(self, "gait", tuple(self.gait))
-        object.__setattr__(self, "gravity_palm", tuple(float(g) for g in self.gravity_palm))
-
-    def with_overrides(self, **overrides) -> PlannerOptions:
-        """A copy with `overrides` applied: this class's own fields (``method="sd"``, ``max_iters=5``,
-        ``finger_gait=FingerGaitOptions(...)``) first, then the names of `OVERRIDES` (``eta=0.008``),
-        which set that field of each sub-options listed there.
-
-        Raises:
-            TypeError: for a name that is neither a field nor in `OVERRIDES`.
-        """
-        own = {k: v for k, v in overrides.items() if k not in self.OVERRIDES}
-        unknown = sorted(set(own) - {f.name for f in fields(self)})
-        if unknown:
-            raise TypeError(f"unknown planner options {unknown}; the options are "
-                            f"{[f.name for f in fields(self)] + list(self.OVERRIDES)}")
-        options = replace(self, **own)
-        for name, value in overrides.items():
-            for sub in self.OVERRIDES.get(name, ()):
-                options = replace(options, **{sub: replace(getattr(options, sub), **{name: value})})
-        return options
-
-    def to_dict(self) -> dict:
-        """The options as plain data (nested dicts for the NLPs' options; the gait as a list or None),
-        as written into `Plan.options`."""
-        opts = asdict(self)
-        opts["gait"] = list(opts["gait"]) if opts["gait"] is not None else None
-        opts["gravity_palm"] = list(opts["gravity_palm"])
-        return opts
 
 
 def gait_pattern(hand: Hand, contacts_object: NDArray[np.float64],
