@@ -290,6 +290,8 @@ def _args(argv):
                     help="the gravity certificate's least normal force of every holding finger, N (HoldingOptions)")
     ap.add_argument("--min-load-share", type=float, default=None,
                     help="the gravity certificate's least normal force as a share of m g / k, k holding fingers")
+    ap.add_argument("--slide-drag-range", action="store_true",
+                    help="certify slides for any drag from none to the full kinetic friction (HoldingOptions)")
     ap.add_argument("--max-normal-force", type=float, default=None,
                     help="the gravity certificate's bound on each normal force, N (HoldingOptions)")
     ap.add_argument("--out", type=pathlib.Path, default=None, help="JSON file for the records")
@@ -315,7 +317,8 @@ def _job(job: tuple) -> tuple[list[dict], list[dict], list[dict]]:
         holding = {k: v for k, v in (("mu", args.mu), ("min_margin", args.min_margin),
                                      ("max_normal_force", args.max_normal_force),
                                      ("min_normal_force", args.min_normal_force),
-                                     ("min_load_share", args.min_load_share)) if v is not None}
+                                     ("min_load_share", args.min_load_share),
+                                     ("slide_drag_range", args.slide_drag_range or None)) if v is not None}
         plan, verified, plan_s = make_plan(problem, method, kind, args.gait_order,
                                            condition_gravity(conditions[0], problem), mass, holding)
         head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,

@@ -95,6 +95,11 @@ class HoldingOptions:
     kinetic_mu: float = MU
     """Kinetic friction coefficient of a sliding finger: its drag on the object, μ_k per newton of normal
     force along its motion (`stability.sliding_normal`). Not lowered with `mu`: more drag is the safe side."""
+    slide_drag_range: bool = False
+    """Certify a slide for any drag from none to μ_k f_n (both ends: the holding sets of the two are
+    convex in the forces, so every drag between is held too): a slide whose balance needs the drag's help
+    fails when the drag falls short (at the slide's start and end, or when the contact creeps). False:
+    the full drag only."""
     slide_budget: float = 2.0
     """Largest tip travel of a finger's slides in one round, in gait bounds η (a lifted finger moves at
     most η; a slide is a sequence of steps of at most `slide_step`, each judged like a gait)."""
@@ -168,9 +173,14 @@ class Holding:
     def slide(self, q: NDArray, T_palm_object: NDArray, finger: str, direction: NDArray | None = None
               ) -> Certificate:
         """Every finger in the grasp, `finger` sliding in `direction` (3,), object frame (its kinetic
-        friction drags the object, `sliding_normal`; None: frictionless)."""
-        return self._certificate(q, T_palm_object, (True,) * len(self.fingers),
-                                 tuple(f == finger for f in self.fingers), direction)
+        friction drags the object, `sliding_normal`; None: frictionless). With `slide_drag_range`, the
+        worse of that and the frictionless slide."""
+        hold, sliding = (True,) * len(self.fingers), tuple(f == finger for f in self.fingers)
+        drag = self._certificate(q, T_palm_object, hold, sliding, direction)
+        if direction is None or not self.options.slide_drag_range or not self.certified(drag):
+            return drag
+        still = self._certificate(q, T_palm_object, hold, sliding, None)
+        return drag if self.certified(still) and drag.margin <= still.margin else still
 
     def sliding_normal(self, normal: NDArray, direction: NDArray | None) -> NDArray:
         """The frictionless normal (3,) of a contact (outward normal (3,)) sliding in `direction` (3,),

@@ -105,6 +105,7 @@ class PlannerOptions:
         "max_normal_force": ("holding",),
         "min_normal_force": ("holding",),
         "min_load_share": ("holding",),
+        "slide_drag_range": ("holding",),
         "min_margin": ("holding",),
         "slide": ("holding",),
         "lookahead": ("holding",),

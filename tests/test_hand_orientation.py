@@ -115,3 +115,33 @@ def test_a_load_share_keeps_every_holding_finger_pressing():
         assert pressing.min() >= share * mass * np.linalg.norm(g_palm) / sum(holding) - 1e-5, step.kind
         checked += step.kind == "gait"
     assert checked > 0
+
+
+def test_a_slide_held_only_by_its_drag_is_refused_with_the_drag_range():
+    """On the flat tool under the supporting gravity, the index finger's slide (along a tangent of its
+    contact) is held only because its kinetic friction μ_k f_n drags the tool the right way: pushing along
+    its normal alone (no drag, as at the slide's start and end) the others cannot hold the tool.
+    `HoldingOptions.slide_drag_range` certifies the slide for every drag from none to μ_k f_n, so it is
+    refused there, and its certificate is the frictionless slide's, recomputed by `certify_step`."""
+    from regrasp_casadi.certificates import certify_step
+    from regrasp_casadi.holding import Holding, HoldingOptions
+    from regrasp_casadi.stability import tangent_basis
+
+    problem = RegraspProblem.load(PROBLEMS / "flat_tool_regrasp.yaml")
+    g0 = problem.grasp0
+    g_palm = supporting_gravity(g0)
+    q, T = g0.q, np.asarray(g0.T_palm_object)
+    plain, ranged = (Holding(problem.hand, problem.obj, "gravity", HoldingOptions(mu=0.4, slide_drag_range=r),
+                             problem.object_mass, g_palm) for r in (False, True))
+    contacts, normals = plain.contacts(q, T)
+    k = list(problem.hand.fingers).index("index")
+    t1, t2 = tangent_basis(normals[k])
+    direction = np.cos(np.pi / 4) * t1 + np.sin(np.pi / 4) * t2
+    assert plain.certified(plain.slide(q, T, "index", direction))
+    cert = ranged.slide(q, T, "index", direction)
+    assert not ranged.certified(cert)
+    sliding = np.arange(len(contacts)) == k
+    mass = problem.object_mass or problem.obj.mesh.volume * 500.0
+    still = certify_step(contacts, normals, np.ones(len(contacts), bool), "gravity", 0.4, mass,
+                         T[:3, :3].T @ g_palm, center=problem.obj.mesh.center_mass, sliding=sliding)
+    assert cert.margin == pytest.approx(still.margin, abs=1e-6) and still.margin < 1.0
