@@ -95,11 +95,11 @@ class HoldingOptions:
     kinetic_mu: float = MU
     """Kinetic friction coefficient of a sliding finger: its drag on the object, μ_k per newton of normal
     force along its motion (`stability.sliding_normal`). Not lowered with `mu`: more drag is the safe side."""
-    slide_drag_range: bool = False
+    slide_drag_range: bool = True
     """Certify a slide for any drag from none to μ_k f_n (both ends: the holding sets of the two are
-    convex in the forces, so every drag between is held too): a slide whose balance needs the drag's help
-    fails when the drag falls short (at the slide's start and end, or when the contact creeps). False:
-    the full drag only."""
+    convex in the forces, so every drag between is held too), as verify does: a slide whose balance needs
+    the drag's help fails when the drag falls short (at the slide's start and end, or when the contact
+    creeps). False: the full drag only (such plans may fail verify's slide certificate)."""
     slide_budget: float = 2.0
     """Largest tip travel of a finger's slides in one round, in gait bounds η (a lifted finger moves at
     most η; a slide is a sequence of steps of at most `slide_step`, each judged like a gait)."""

@@ -4,7 +4,9 @@ Rows of `verify.CHECK_TABLE` ("slide_path", "unstable_gait"); they judge with ve
 (`Tolerances.mu`, `Tolerances.max_normal_force`, `Tolerances.surface_tol`), never the plan's. A slide's
 finger counts as pushing along its normal and dragging the object with kinetic friction μ along its
 motion over the surface (its tip centre's, previous step to this, in the tangent plane: over an edge
-the contact point barely moves while the tip slides over it), at both ends of the step. Also the
+the contact point barely moves while the tip slides over it), and as pushing along its normal without
+drag (a frictionless contact, as at the slide's start and end: a slide held only by its drag's help is
+not certified), at both ends of the step. Also the
 stability metrics of every plan (the paper's force-closure margin of the gaits' holding fingers,
 `record_holding_quality`) and the stability line of `VerifyReport.summary`. Imports only the exact side
 of the package (certificates, stability, transforms, motion): no NLP or smooth-distance code.
@@ -150,7 +152,8 @@ def check_unstable_gait(ctx: VerifyContext, k: int, step: PlanStep) -> list[Find
         fi = ctx.fingers.index(step.finger)
         tips = [transform_points(inv_T(ctx.plan.steps[j].T_palm_object), ctx.exact.p_palm_tips[j])[fi]
                 for j in (k - 1, k)]
-        certs = [holding_certificate(ctx, j, everyone, mover, tips[1] - tips[0]) for j in (k - 1, k)]
+        certs = [holding_certificate(ctx, j, everyone, mover, drag) for j in (k - 1, k)
+                 for drag in (tips[1] - tips[0], None)]
     else:
         certs = [holding_certificate(ctx, k, everyone, nobody)]
     worst = min(certs, key=lambda c: (c.ok, c.margin if np.isfinite(c.margin) else -np.inf))

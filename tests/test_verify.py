@@ -308,3 +308,26 @@ def test_cli_verify_judges_with_its_own_zeta(forged_plan, capsys):
     assert main(["verify", str(path), "--zeta", f"{error_mm + 1:.3f}"]) == 1  # the pose rows remain
     assert main(["verify", str(path), "--zeta", f"{error_mm - 1:.3f}", *pose]) == 1
     assert main(["verify", str(path), "--zeta", "-1"]) == 2
+
+
+def test_a_slide_held_only_by_its_drag_is_uncertified(models):
+    """The left tip slides 6 mm along −z on the box's −x face; gravity g (cos 60° x̂ + sin 60° ẑ) presses
+    the box onto the right tip and pulls it up, against the left tip's drag. With the contacts on the x
+    axis through the centre of mass, the torque about y asks for equal tangential forces at the two tips,
+    so the weight's z part W_z needs a drag μ a_L = W_z / 2 from the left tip (held: the right one's
+    friction W_z / 2 ≤ μ a_R, a_R = a_L + W_x), while a frictionless left tip, as at the slide's start
+    and end, carries no W_z at all. verify certifies a slide with the drag and without, so the slide is
+    an `unstable_gait`; with gravity along +x only (the right tip carries the box, the left need not
+    press, so it drags nothing) it passes."""
+    hand, obj = models
+    q0, q1 = _q(hand), _q(hand, left_slide=-0.006)
+    specs = [("initial", None, q0, tf.box_pose()), ("slide", "left", q1, tf.box_pose())]
+    plan = _plan(hand, obj, specs)
+    d = hand.tip_positions(q1)[0] - hand.tip_positions(q0)[0]
+    np.testing.assert_allclose(d / np.linalg.norm(d), [0.0, 0.0, -1.0], atol=1e-12)
+    tilted = 9.81 * np.array([np.cos(np.pi / 3), 0.0, np.sin(np.pi / 3)])
+    for g, uncertified in ((tilted, True), (np.array([9.81, 0.0, 0.0]), False)):
+        options = {**OPTIONS, "stability": "gravity", "gravity_palm": g.tolist(), "object_mass": 0.1}
+        report = verify(replace(plan, options=options), hand, obj)
+        assert ((1, "unstable_gait", "left") in _found(report)) == uncertified, report.summary()
+        assert report.metrics["uncertified_steps"] == ([1] if uncertified else [])
