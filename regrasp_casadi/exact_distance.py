@@ -29,6 +29,9 @@ __all__ = ["ExactDistance"]
 
 _MM_PER_M = 1000.0
 
+CACHE_SIZE = 100_000
+"""`ExactDistance.closest` remembers at most this many points (≈ 10 MB); when full, it starts again."""
+
 
 class ExactDistance:
     """Exact distance queries on a watertight mesh (metres, object frame), computed in millimetres.
@@ -60,6 +63,8 @@ class ExactDistance:
         self._face_edges = np.array(m.faces_unique_edges)
         self._faces = np.array(m.faces)
         self._vertex_normals = vert_n
+        self._cache: dict[bytes, NDArray[np.float64]] = {}
+        """point (its 24 bytes, m) -> (closest point (3,), signed distance, triangle id) of `closest`."""
 
     def _nearest_triangles(self, p_mm: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
         """Closest points (n, 3) mm, their triangle ids (n,) and distances (n,) mm of points (n, 3) mm.
@@ -97,8 +102,36 @@ class ExactDistance:
 
     def closest(self, points: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray]:
         """Exact closest points (n, 3) m, signed distances (n,) m (positive outside) and triangle ids (n,)
-        of points (n, 3), object frame, m."""
-        p_mm = np.atleast_2d(np.asarray(points, float)) * _MM_PER_M
+        of points (n, 3), object frame, m.
+
+        Remembers the answers of the last `CACHE_SIZE` or fewer points (bit for bit: a plan asks for the
+        same sphere centres again, e.g. OPT1's check of a step and the trajectory's of its knots) and
+        computes the others in one batch; `clear_cache` forgets them."""
+        pts = np.ascontiguousarray(np.atleast_2d(np.asarray(points, float)))
+        keys = [row.tobytes() for row in pts]
+        rows = [self._cache.get(k) for k in keys]
+        missing = [i for i, row in enumerate(rows) if row is None]
+        if missing:
+            first: dict[bytes, int] = {}  # every new point once, in the order asked
+            for i in missing:
+                first.setdefault(keys[i], i)
+            c, d, tri = self._closest(pts[list(first.values())])
+            new = dict(zip(first, np.column_stack([c, d, tri]), strict=True))
+            for i in missing:
+                rows[i] = new[keys[i]]
+            if len(self._cache) + len(new) > CACHE_SIZE:
+                self._cache.clear()
+            self._cache.update(new)
+        out = np.array(rows).reshape(len(pts), 5)
+        return out[:, :3], out[:, 3], out[:, 4].astype(np.int64)
+
+    def clear_cache(self) -> None:
+        """Forget the remembered answers of `closest`."""
+        self._cache.clear()
+
+    def _closest(self, pts: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray]:
+        """`closest` computed for points (n, 3), m (n ≥ 1)."""
+        p_mm = pts * _MM_PER_M
         c_mm, tri, dist = self._nearest_triangles(p_mm)
         n = self._pseudo_normals(c_mm, tri)
         sign = np.where(np.einsum("ij,ij->i", p_mm - c_mm, n) < 0.0, -1.0, 1.0)
