@@ -510,15 +510,19 @@ class Hand:
 
     def tip_positions(self, q: ArrayLike) -> NDArray[np.float64]:
         """(m, 3) tip contact-sphere centres, palm frame, m, rows in ``fingers`` order."""
-        return self._eval(self.tip_positions_function(), q).T
+        fn = self._fn_cache.get(("tips",)) or self.tip_positions_function()  # (built: no checks again)
+        return self._eval(fn, q).T
 
     def tip_jacobian(self, q: ArrayLike, finger: str) -> NDArray[np.float64]:
         """(3, n) Jacobian of the tip contact-sphere centre (palm frame) of ``finger`` w.r.t. q."""
-        return self._eval(self.tip_jacobian_function(finger), q)
+        fn = self._fn_cache.get(("jac", finger)) or self.tip_jacobian_function(finger)
+        return self._eval(fn, q)
 
     def sphere_centers(self, q: ArrayLike, finger: str | None = None, include_tip: bool = False) -> NDArray:
         """(k, 3) sphere centres, palm frame, m (see ``sphere_centers_function``)."""
-        return self._eval(self.sphere_centers_function(finger, include_tip), q).T
+        fn = self._fn_cache.get(("spheres", finger, include_tip)) or self.sphere_centers_function(finger,
+                                                                                                  include_tip)
+        return self._eval(fn, q).T
 
     def q_mid(self) -> NDArray[np.float64]:
         """(n,) mid-range configuration (0 for unbounded joints)."""

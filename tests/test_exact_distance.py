@@ -105,7 +105,7 @@ def test_matches_trimesh_on_a_fine_non_convex_mesh_far_and_near():
 def test_remembered_answers_are_the_computed_ones(monkeypatch):
     """`closest` answers repeated points (within a call and across calls) from its cache bit for bit as a
     fresh object computes them, and starts again when the cache is full."""
-    import regrasp_casadi.exact_distance as exact_distance
+    from regrasp_casadi import exact_distance
 
     mesh = trimesh.creation.torus(major_radius=0.05, minor_radius=0.02, major_sections=48, minor_sections=16)
     rng = np.random.default_rng(11)
