@@ -30,7 +30,7 @@ __all__ = ["ExactDistance"]
 _MM_PER_M = 1000.0
 
 CACHE_SIZE = 100_000
-"""`ExactDistance.closest` remembers at most this many points (≈ 10 MB); when full, it starts again."""
+"""`ExactDistance.closest` remembers at most this many points (≈ 25 MB); when full, it starts again."""
 
 
 class ExactDistance:
@@ -104,9 +104,11 @@ class ExactDistance:
         """Exact closest points (n, 3) m, signed distances (n,) m (positive outside) and triangle ids (n,)
         of points (n, 3), object frame, m.
 
-        Remembers the answers of the last `CACHE_SIZE` or fewer points (bit for bit: a plan asks for the
-        same sphere centres again, e.g. OPT1's check of a step and the trajectory's of its knots) and
-        computes the others in one batch; `clear_cache` forgets them."""
+        Remembers the answers of the last `CACHE_SIZE` or fewer points (a plan asks for the same sphere
+        centres again, e.g. OPT1's check of a step and the trajectory's of its knots) and computes the
+        others in one batch; `clear_cache` forgets them. A remembered answer is the one a new query
+        computes, bit for bit: trimesh's closest-point arithmetic goes row by row, so a point's answer
+        does not depend on the other points of its batch (tests/test_exact_distance.py)."""
         pts = np.ascontiguousarray(np.atleast_2d(np.asarray(points, float)))
         keys = [row.tobytes() for row in pts]
         rows = [self._cache.get(k) for k in keys]
