@@ -66,36 +66,41 @@ class TriangleTree:
         self._build(tris)
 
     def _build(self, tris: NDArray[np.float64]) -> None:
-        """Nodes by median splits of the centroids along their widest axis; node k holds the triangles
-        perm[start[k]:stop[k]], children left[k], left[k] + 1 (−1: a leaf), sphere (centre[k], reach[k])
-        enclosing its triangles' spheres."""
+        """Nodes by median splits of the centroids along their widest axis, level by level; node k holds
+        the triangles perm[start[k]:stop[k]], children left[k], left[k] + 1 (−1: a leaf), sphere
+        (centre[k], reach[k]) enclosing its triangles' spheres. tris: (n, 3, 3)."""
         perm = np.arange(len(tris))
         start, stop, left = [0], [len(tris)], [-1]
-        k = 0
-        while k < len(start):
-            lo, hi = start[k], stop[k]
-            if hi - lo > LEAF_SIZE:
-                sub = perm[lo:hi]
-                c = self.centroids[sub]
-                axis = int(np.argmax(c.max(axis=0) - c.min(axis=0)))
-                perm[lo:hi] = sub[np.argsort(c[:, axis], kind="stable")]
-                mid = (lo + hi) // 2
-                left[k] = len(start)
-                start += [lo, mid]
-                stop += [mid, hi]
-                left += [-1, -1]
-            k += 1
+        level = np.array([0])
+        while len(level):
+            lo, hi = np.array(start)[level], np.array(stop)[level]
+            split = hi - lo > LEAF_SIZE
+            level, lo, hi = level[split], lo[split], hi[split]
+            if not len(level):
+                break
+            pos, offsets, sizes = _ranges(lo, hi)
+            c = self.centroids[perm[pos]]
+            extent = np.maximum.reduceat(c, offsets, axis=0) - np.minimum.reduceat(c, offsets, axis=0)
+            node_of = np.repeat(np.arange(len(level)), sizes)
+            key = c[np.arange(len(c)), np.argmax(extent, axis=1)[node_of]]
+            perm[pos] = perm[pos][np.lexsort((key, node_of))]  # a stable sort within every node
+            mid = (lo + hi) // 2
+            first = len(start) + 2 * np.arange(len(level))
+            for k, child in zip(level.tolist(), first.tolist(), strict=True):
+                left[k] = child
+            start += np.column_stack([lo, mid]).ravel().tolist()
+            stop += np.column_stack([mid, hi]).ravel().tolist()
+            left += [-1] * (2 * len(level))
+            level = np.column_stack([first, first + 1]).ravel()
         self.perm, self.start, self.stop = perm, np.array(start), np.array(stop)
         self.left = np.array(left)
-        self.centre = np.empty((len(start), 3))
-        self.reach = np.empty(len(start))
-        for k, (lo, hi) in enumerate(zip(start, stop, strict=True)):
-            sub = perm[lo:hi]
-            v = tris[sub].reshape(-1, 3)
-            self.centre[k] = 0.5 * (v.min(axis=0) + v.max(axis=0))
-            spread = np.linalg.norm(self.centroids[sub] - self.centre[k], axis=1)
-            self.reach[k] = np.max(spread + self.radii[sub])
-        self.reach = self.reach * (1.0 + 1e-12) + _SLACK
+        pos, offsets, sizes = _ranges(self.start, self.stop)
+        ids = perm[pos]
+        low = np.minimum.reduceat(self.lower[ids], offsets, axis=0)
+        high = np.maximum.reduceat(self.upper[ids], offsets, axis=0)
+        self.centre = 0.5 * (low + high)
+        spread = np.linalg.norm(self.centroids[ids] - np.repeat(self.centre, sizes, axis=0), axis=1)
+        self.reach = np.maximum.reduceat(spread + self.radii[ids], offsets) * (1.0 + 1e-12) + _SLACK
 
     def _leaves(self, p: NDArray[np.float64], r: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
         """(point, leaf) pairs whose leaf's sphere comes within r (n,) of the point (of p (n, 3)): point
@@ -131,3 +136,11 @@ class TriangleTree:
         ids, owner = ids[keep], owner[keep]
         order = np.argsort(owner * len(self.rank) + self.rank[ids], kind="stable")
         return ids[order], owner[order]
+
+
+def _ranges(lo: NDArray[np.int64], hi: NDArray[np.int64]) -> tuple[NDArray, NDArray, NDArray]:
+    """The positions lo[i] … hi[i] − 1 of every range, concatenated (m,), where each range starts in
+    that array (k,), and the range sizes (k,) (all ≥ 1)."""
+    sizes = hi - lo
+    offsets = np.cumsum(sizes) - sizes
+    return np.repeat(lo - offsets, sizes) + np.arange(int(sizes.sum())), offsets, sizes

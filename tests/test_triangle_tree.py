@@ -114,3 +114,44 @@ def test_first_minima_is_the_stable_sort():
     np.testing.assert_array_equal(_first_minima(d2, owner, 300), np.lexsort((d2, owner))[starts])
     d2[[3, 40]] = np.nan
     np.testing.assert_array_equal(_first_minima(d2, owner, 300), np.lexsort((d2, owner))[starts])
+
+
+def _build_loop(tree: TriangleTree, tris: np.ndarray):
+    """The replaced node-by-node build: (perm, start, stop, left, centre, reach)."""
+    from regrasp_casadi.triangle_tree import _SLACK, LEAF_SIZE
+
+    perm = np.arange(len(tris))
+    start, stop, left = [0], [len(tris)], [-1]
+    k = 0
+    while k < len(start):
+        lo, hi = start[k], stop[k]
+        if hi - lo > LEAF_SIZE:
+            sub = perm[lo:hi]
+            c = tree.centroids[sub]
+            axis = int(np.argmax(c.max(axis=0) - c.min(axis=0)))
+            perm[lo:hi] = sub[np.argsort(c[:, axis], kind="stable")]
+            mid = (lo + hi) // 2
+            left[k] = len(start)
+            start += [lo, mid]
+            stop += [mid, hi]
+            left += [-1, -1]
+        k += 1
+    centre, reach = np.empty((len(start), 3)), np.empty(len(start))
+    for k, (lo, hi) in enumerate(zip(start, stop, strict=True)):
+        sub = perm[lo:hi]
+        v = tris[sub].reshape(-1, 3)
+        centre[k] = 0.5 * (v.min(axis=0) + v.max(axis=0))
+        reach[k] = np.max(np.linalg.norm(tree.centroids[sub] - centre[k], axis=1) + tree.radii[sub])
+    return perm, np.array(start), np.array(stop), np.array(left), centre, reach * (1.0 + 1e-12) + _SLACK
+
+
+@pytest.mark.parametrize("k", range(3))
+def test_level_by_level_build_is_the_node_by_node_one(k):
+    mesh = _meshes_mm()[k]
+    tris = np.array(mesh.triangles)
+    tree = TriangleTree(tris)
+    for got, want in zip((tree.perm, tree.start, tree.stop, tree.left, tree.centre, tree.reach),
+                         _build_loop(tree, tris), strict=True):
+        np.testing.assert_array_equal(got, want)
+    small = TriangleTree(tris[:5])  # one leaf
+    assert small.left.tolist() == [-1] and small.stop.tolist() == [5]
