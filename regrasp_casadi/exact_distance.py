@@ -20,12 +20,17 @@ import numpy as np
 import trimesh
 from numpy.typing import ArrayLike, NDArray
 
+from regrasp_casadi.triangle_tree import TriangleTree, rtree_rank
+
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.convex import ConvexPiece
 
 __all__ = ["ExactDistance"]
 
 _MM_PER_M = 1000.0
+
+CACHE_SIZE = 100_000
+"""`ExactDistance.closest` remembers at most this many points (≈ 25 MB); when full, it starts again."""
 
 
 class ExactDistance:
@@ -51,13 +56,15 @@ class ExactDistance:
         np.add.at(vert_n, m.faces.ravel(), (fn[:, None, :] * m.face_angles[:, :, None]).reshape(-1, 3))
         self._mesh_mm = m
         self._kdtree = cKDTree(m.vertices)
-        self._rtree = m.triangles_tree
         self._triangles_mm = np.array(m.triangles)
-        self._centroids_mm = self._triangles_mm.mean(axis=1)
-        spokes = self._triangles_mm - self._centroids_mm[:, None]
-        self._radii_mm = np.max(np.linalg.norm(spokes, axis=2), axis=1)
+        self._tree = TriangleTree(self._triangles_mm, rank=rtree_rank(m.triangles_tree, self._triangles_mm))
         self._edge_normals = edge_n
+        self._face_normals = np.array(fn)
+        self._face_edges = np.array(m.faces_unique_edges)
+        self._faces = np.array(m.faces)
         self._vertex_normals = vert_n
+        self._cache: dict[bytes, NDArray[np.float64]] = {}
+        """point (its 24 bytes, m) -> (closest point (3,), signed distance, triangle id) of `closest`."""
 
     def _nearest_triangles(self, p_mm: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
         """Closest points (n, 3) mm, their triangle ids (n,) and distances (n,) mm of points (n, 3) mm.
@@ -66,42 +73,67 @@ class ExactDistance:
         nearest vertex), with the k-d tree built once rather than on every call, and the candidates pruned
         by their bounding spheres: a triangle whose sphere (centroid, largest vertex distance) lies
         farther than the nearest vertex cannot hold the closest point (the nearest vertex bounds the
-        distance from above), so only exact distances that can win are computed.
+        distance from above), so only exact distances that can win are computed. The candidates come
+        from a bounding-sphere tree (`triangle_tree`), in the order trimesh's R-tree gave them.
         """
-        tris = self._triangles_mm
         n_pts = len(p_mm)
-        r = self._kdtree.query(p_mm)[0][:, None] + 1e-8
-        ids, counts = self._rtree.intersection_v(p_mm - r, p_mm + r)
-        ids = np.asarray(ids, dtype=np.int64)
-        owner = np.repeat(np.arange(n_pts), np.asarray(counts, dtype=np.int64))
-        gap = self._centroids_mm[ids] - p_mm[owner]
-        keep = np.sqrt(np.einsum("ij,ij->i", gap, gap)) - self._radii_mm[ids] <= r[owner, 0]
-        ids, owner = ids[keep], owner[keep]
-        counts = np.bincount(owner, minlength=n_pts)
-        cand = trimesh.triangles.closest_point(tris[ids], p_mm[owner])
-        d2 = np.einsum("ij,ij->i", p_mm[owner] - cand, p_mm[owner] - cand)
-        best = np.lexsort((d2, owner))[np.concatenate([[0], np.cumsum(counts)[:-1]])]
+        r = self._kdtree.query(p_mm)[0] + 1e-8
+        ids, owner = self._tree.candidates(p_mm, r)
+        q = p_mm[owner]
+        cand = trimesh.triangles.closest_point(self._triangles_mm[ids], q)
+        diff = q - cand
+        d2 = np.einsum("ij,ij->i", diff, diff)
+        best = _first_minima(d2, owner, n_pts)
         return cand[best], ids[best], np.sqrt(d2[best])
 
     def _pseudo_normals(self, c_mm: NDArray[np.float64], tri: NDArray[np.int64]) -> NDArray[np.float64]:
         """Pseudo-normal (n, 3) of the feature of triangle `tri` (n,) that holds the closest point (n, 3) mm:
         the face normal, or the edge / vertex pseudo-normal when the point lies on an edge / vertex."""
-        m = self._mesh_mm
         bary = trimesh.triangles.points_to_barycentric(self._triangles_mm[tri], c_mm)
         small = bary < 1e-7
-        n = m.face_normals[tri].copy()
+        n = self._face_normals[tri]
         n_small = small.sum(axis=1)
-        for i in np.nonzero(n_small == 1)[0]:  # on an edge: the one opposite the small weight
-            k = int(np.argmax(small[i]))
-            n[i] = self._edge_normals[m.faces_unique_edges[tri[i], (k + 1) % 3]]
-        for i in np.nonzero(n_small >= 2)[0]:  # at a vertex: the one of the largest weight
-            n[i] = self._vertex_normals[m.faces[tri[i], int(np.argmax(bary[i]))]]
+        edge = n_small == 1  # on an edge: the one opposite the small weight
+        k = np.argmax(small[edge], axis=1)
+        n[edge] = self._edge_normals[self._face_edges[tri[edge], (k + 1) % 3]]
+        vertex = n_small >= 2  # at a vertex: the one of the largest weight
+        n[vertex] = self._vertex_normals[self._faces[tri[vertex], np.argmax(bary[vertex], axis=1)]]
         return n
 
     def closest(self, points: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray]:
         """Exact closest points (n, 3) m, signed distances (n,) m (positive outside) and triangle ids (n,)
-        of points (n, 3), object frame, m."""
-        p_mm = np.atleast_2d(np.asarray(points, float)) * _MM_PER_M
+        of points (n, 3), object frame, m.
+
+        Remembers the answers of the last `CACHE_SIZE` or fewer points (a plan asks for the same sphere
+        centres again, e.g. OPT1's check of a step and the trajectory's of its knots) and computes the
+        others in one batch; `clear_cache` forgets them. A remembered answer is the one a new query
+        computes, bit for bit: trimesh's closest-point arithmetic goes row by row, so a point's answer
+        does not depend on the other points of its batch (tests/test_exact_distance.py)."""
+        pts = np.ascontiguousarray(np.atleast_2d(np.asarray(points, float)))
+        keys = [row.tobytes() for row in pts]
+        rows = [self._cache.get(k) for k in keys]
+        missing = [i for i, row in enumerate(rows) if row is None]
+        if missing:
+            first: dict[bytes, int] = {}  # every new point once, in the order asked
+            for i in missing:
+                first.setdefault(keys[i], i)
+            c, d, tri = self._closest(pts[list(first.values())])
+            new = dict(zip(first, np.column_stack([c, d, tri]), strict=True))
+            for i in missing:
+                rows[i] = new[keys[i]]
+            if len(self._cache) + len(new) > CACHE_SIZE:
+                self._cache.clear()
+            self._cache.update(new)
+        out = np.array(rows).reshape(len(pts), 5)
+        return out[:, :3], out[:, 3], out[:, 4].astype(np.int64)
+
+    def clear_cache(self) -> None:
+        """Forget the remembered answers of `closest`."""
+        self._cache.clear()
+
+    def _closest(self, pts: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray]:
+        """`closest` computed for points (n, 3), m (n ≥ 1)."""
+        p_mm = pts * _MM_PER_M
         c_mm, tri, dist = self._nearest_triangles(p_mm)
         n = self._pseudo_normals(c_mm, tri)
         sign = np.where(np.einsum("ij,ij->i", p_mm - c_mm, n) < 0.0, -1.0, 1.0)
@@ -140,3 +172,15 @@ class ExactDistance:
     def surface_normals(self, points: ArrayLike) -> NDArray[np.float64]:
         """Outward unit normal (n, 3), object frame, of the mesh face closest to each point (n, 3), m."""
         return np.array(self.mesh.face_normals[self.closest(points)[2]])
+
+
+def _first_minima(d2: NDArray[np.float64], owner: NDArray[np.int64], n_pts: int) -> NDArray[np.int64]:
+    """Index (n_pts,) of the smallest d2 of every point, the first one among equal values: d2 (m,) of
+    candidates grouped by their point `owner` (m,), sorted, every point with at least one (what a
+    stable sort of (owner, d2) puts first)."""
+    starts = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=n_pts))[:-1]])
+    hit = np.flatnonzero(d2 == np.minimum.reduceat(d2, starts)[owner])
+    first = hit[np.unique(owner[hit], return_index=True)[1]]
+    if len(first) != n_pts:  # NaN distances: the sort's rule
+        first = np.lexsort((d2, owner))[starts]
+    return first

@@ -115,7 +115,7 @@ class Hand:
         in_models = same and file_meta.source.parent.parent == models_dir().resolve()
         self._model_name: str | None = file_meta.source.parent.name if in_models else None
         self._fn_cache: dict[tuple, ca.Function] = {}
-        self._fast_cache: dict[str, tuple] = {}
+        self._fast_cache: dict[int, tuple] = {}
 
     def _init_joints(self, model: UrdfModel) -> None:
         actuated = [j for j in model.joints if j.type != "fixed" and j.mimic is None]
@@ -333,22 +333,29 @@ class Hand:
     def _eval(self, fn: ca.Function, q: ArrayLike) -> NDArray[np.float64]:
         """Evaluate a cached single-output function numerically through a preallocated CasADi buffer
         (≈ 1-3 µs instead of ≈ 20 µs for a regular call). Not thread-safe; returns a copy."""
-        if fn.numel_out(0) == 0:
-            self._as_q(q)
-            return np.zeros(fn.size_out(0))
-        fast = self._fast_cache.get(fn.name())
-        if fast is None or fast[0] is not fn:
-            q_buf = np.zeros(self.n_joints)
-            rows, cols = fn.size_out(0)
-            out_buf = np.zeros((cols, rows))  # CasADi is column-major: out_buf.T is the (rows, cols) result
-            buf, evaluate = fn.buffer()
-            buf.set_arg(0, memoryview(q_buf))
-            buf.set_res(0, memoryview(out_buf))
-            fast = self._fast_cache[fn.name()] = (fn, buf, evaluate, q_buf, out_buf)
+        fast = self._fast_cache.get(id(fn))
+        if fast is None or fast[0] is not fn:  # (the entry holds fn: its id is not reused meanwhile)
+            fast = self._fast_cache[id(fn)] = self._fast_entry(fn)
         _, _, evaluate, q_buf, out_buf = fast
+        if evaluate is None:  # an empty output
+            self._as_q(q)
+            return np.zeros(out_buf.shape)
         q_buf[:] = self._as_q(q)
         evaluate()
         return out_buf.T.copy()
+
+    def _fast_entry(self, fn: ca.Function) -> tuple:
+        """(fn, its buffer, evaluate (None: an empty output), q buffer (n,), output buffer (cols, rows) or
+        the empty output) of `_eval`."""
+        rows, cols = fn.size_out(0)
+        if fn.numel_out(0) == 0:
+            return fn, None, None, None, np.zeros((rows, cols))
+        q_buf = np.zeros(self.n_joints)
+        out_buf = np.zeros((cols, rows))  # CasADi is column-major: out_buf.T is the (rows, cols) result
+        buf, evaluate = fn.buffer()
+        buf.set_arg(0, memoryview(q_buf))
+        buf.set_res(0, memoryview(out_buf))
+        return fn, buf, evaluate, q_buf, out_buf
 
     def fk_function(self) -> ca.Function:
         """``fk``: q (n,) -> one (4, 4) ``T_palm_<link>`` output per link, in ``link_names`` order."""
@@ -503,15 +510,19 @@ class Hand:
 
     def tip_positions(self, q: ArrayLike) -> NDArray[np.float64]:
         """(m, 3) tip contact-sphere centres, palm frame, m, rows in ``fingers`` order."""
-        return self._eval(self.tip_positions_function(), q).T
+        fn = self._fn_cache.get(("tips",)) or self.tip_positions_function()  # (built: no checks again)
+        return self._eval(fn, q).T
 
     def tip_jacobian(self, q: ArrayLike, finger: str) -> NDArray[np.float64]:
         """(3, n) Jacobian of the tip contact-sphere centre (palm frame) of ``finger`` w.r.t. q."""
-        return self._eval(self.tip_jacobian_function(finger), q)
+        fn = self._fn_cache.get(("jac", finger)) or self.tip_jacobian_function(finger)
+        return self._eval(fn, q)
 
     def sphere_centers(self, q: ArrayLike, finger: str | None = None, include_tip: bool = False) -> NDArray:
         """(k, 3) sphere centres, palm frame, m (see ``sphere_centers_function``)."""
-        return self._eval(self.sphere_centers_function(finger, include_tip), q).T
+        fn = self._fn_cache.get(("spheres", finger, include_tip)) or self.sphere_centers_function(finger,
+                                                                                                  include_tip)
+        return self._eval(fn, q).T
 
     def q_mid(self) -> NDArray[np.float64]:
         """(n,) mid-range configuration (0 for unbounded joints)."""

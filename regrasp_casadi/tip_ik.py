@@ -18,6 +18,7 @@ the pose (the joints and the pose pulled towards their references in the null sp
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -51,13 +52,21 @@ OBJECT_LEVER = 0.05
 """`tip_object_ik`: a radian of object rotation counts like this much translation, m."""
 
 
+@functools.lru_cache(maxsize=64)
+def _damping_matrix(rows: int, damping: float) -> NDArray[np.float64]:
+    """λ² I (rows, rows), read-only (built once per size and λ)."""
+    out = damping**2 * np.eye(rows)
+    out.flags.writeable = False
+    return out
+
+
 def _dls_step(J: NDArray, e: NDArray, dq_null: NDArray, at_lower: NDArray, at_upper: NDArray,
               damping: float) -> NDArray:
     """Damped least-squares step of the joints (columns of J) towards the tip error e, plus the null-space
     part of dq_null; joints at a limit that the step would push out are frozen (re-solved without them)."""
     free = np.ones(J.shape[1], dtype=bool)
     dq = np.zeros(J.shape[1])
-    damping_matrix = damping**2 * np.eye(J.shape[0])
+    damping_matrix = _damping_matrix(J.shape[0], damping)
     rhs = np.empty((J.shape[0], 2))
     rhs[:, 0] = e
     for _ in range(3):

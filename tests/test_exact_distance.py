@@ -100,3 +100,27 @@ def test_matches_trimesh_on_a_fine_non_convex_mesh_far_and_near():
     ref_closest, ref_dist, _ = trimesh.proximity.closest_point(mesh.copy().apply_scale(1000.0), pts * 1000.0)
     np.testing.assert_allclose(np.abs(d), ref_dist / 1000.0, atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(closest - ref_closest / 1000.0, axis=1), 0.0, atol=1e-9)
+
+
+def test_remembered_answers_are_the_computed_ones(monkeypatch):
+    """`closest` answers repeated points (within a call and across calls) from its cache bit for bit as a
+    fresh object computes them, and starts again when the cache is full."""
+    from regrasp_casadi import exact_distance
+
+    mesh = trimesh.creation.torus(major_radius=0.05, minor_radius=0.02, major_sections=48, minor_sections=16)
+    rng = np.random.default_rng(11)
+    pts = rng.uniform(-0.08, 0.08, size=(300, 3))
+    reference = ExactDistance(mesh).closest(pts)
+    monkeypatch.setattr(exact_distance, "CACHE_SIZE", 250)
+    exact = ExactDistance(mesh)
+    exact.closest(pts[::3])
+    mixed = np.vstack([pts[:150], pts[:10], pts[150:]])  # cached, repeated and new points
+    for got, ref in zip(exact.closest(mixed), reference, strict=True):
+        np.testing.assert_array_equal(np.delete(got, np.s_[150:160], axis=0), ref)
+        np.testing.assert_array_equal(got[150:160], ref[:10])
+    assert len(exact._cache) <= 250
+    exact.clear_cache()
+    assert not exact._cache
+    for got, ref in zip(exact.closest(pts), reference, strict=True):
+        np.testing.assert_array_equal(got, ref)
+    assert exact.closest(pts[:1])[2].dtype == np.int64
