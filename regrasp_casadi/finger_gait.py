@@ -63,6 +63,10 @@ class FingerGaitResult(_solver.SolveStats):
     min_self_clearance: float = float("inf")
     """Smallest surface distance of the finger's spheres to the other fingers' and the palm's spheres
     (the constrained pairs), m (inf without self-collision constraints)."""
+    p_object_tip_goal: NDArray[np.float64] | None = None
+    """The goal tip-sphere centre the gait was solved towards, (3,) object frame, m."""
+    eta: float = ETA
+    """The step bound of the solve, m (the options' η or the shorter one asked for)."""
 
 
 def _param_layout(n: int, k: int, n_planes: int) -> _solver.ParamLayout:
@@ -273,7 +277,7 @@ class FingerGaitNLP:
         if not corr.converged:
             corr = self._polished(corr, iterates, q=q, T=T, c0=c0, c_goal=c_goal,
                                   p=params(np.zeros(1 + self._k), planes), done=done, o=o)
-        return self._result(q, c0, corr, floor, o)
+        return replace(self._result(q, c0, corr, floor, o), p_object_tip_goal=c_goal, eta=float(o.eta))
 
     def _polished(self, corr: _solver.Correction[_Evaluation],
                   iterates: list[tuple[NDArray[np.float64], _Evaluation]], *, q, T, c0, c_goal, p, done,
