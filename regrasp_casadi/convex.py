@@ -420,9 +420,10 @@ def _decompose(mesh: trimesh.Trimesh, threshold: float, max_pieces: int, seed: i
 
 def hull_piece(vertices: NDArray) -> ConvexPiece | None:
     """The convex hull of `vertices` (v, 3), m, with every face plane and the edge planes of
-    `add_edge_planes`: the tightest half-space form of the hull (a lower bound of its Euclidean distance
-    outside that is within a few tenths of a millimetre at a fingertip's radius); None if the points span
-    no volume. For a model that only ever reads a few planes at a time (`select_local_planes`)."""
+    `add_edge_planes`: its max of plane distances is a lower bound of the hull's Euclidean distance
+    outside that the edge planes keep close near edges and corners (the cup's wall pieces: within 0.7 mm
+    at a fingertip's radius, tests/test_walls_tip_model.py); None if the points span no volume. For a
+    model that only ever reads a few planes at a time (`select_local_planes`)."""
     return _piece_or_none(vertices, 10**6)
 
 
