@@ -58,7 +58,8 @@ def _plan(pair, method: str, stability: str = "force_closure") -> dict:
         return {"method": method, "status": f"crash: {type(exc).__name__}: {exc}", "converged": False,
                 "verified": False, "plan_s": round(time.perf_counter() - t0, 1)}
     report = verify(plan)
-    return {"method": method, "status": plan.status, "converged": plan.status == "converged",
+    return {"method": method, "status": plan.status, "status_detail": plan.status_detail,
+            "iterations": int(plan.iterations), "converged": plan.status == "converged",
             "verified": bool(report.ok), "failed_checks": sorted({v.check for v in report.violations}),
             "steps": len(plan.steps),
             "plan_s": round(time.perf_counter() - t0, 1)}

@@ -42,6 +42,8 @@ __all__ = ["certified_round", "accept_gait", "search_score", "slide_path_error"]
 
 _log = logging.getLogger(__name__)
 
+GAIT_RETRIES = 2
+"""Gaits with half the step bound tried when a gait's path fails its checks (`accept_gait`)."""
 _MIN_MOVE = 1e-5
 """A solve that moves the tip less than this, m, made no move."""
 _PATH_SAMPLES = 8
@@ -170,10 +172,25 @@ def _gait(run: _Run, finger: str, cert: Certificate, todo: list[str]) -> None:
 
 
 def accept_gait(run: _Run, finger: str, res, certificate: Certificate | None = None) -> bool:
-    """Take OPT1's result `res` (`.q`, `.status`, `.solve_time`) as a gait step of `finger` unless its
-    path fails its checks (`_Run.unrealisable`, e.g. a touch-down into another finger: the finger then
-    stays, the reason goes to `run.failures`); True when taken. The paper's rounds use it too."""
+    """Take OPT1's result `res` (a `FingerGaitResult`) as a gait step of `finger` unless its path fails
+    its checks (`_Run.unrealisable`, e.g. a transit through a rim or a touch-down into another finger).
+    Then the same gait is solved again with half the step bound, at most `GAIT_RETRIES` times, and the
+    first shorter gait whose path passes is taken (a shorter lift-transit-touch-down sweeps less of the
+    finger past the object); none: the finger stays and the first reason goes to `run.failures`. True
+    when a gait is taken. The paper's rounds use it too."""
     bad, path = run.unrealisable(res.q, run.T_palm_object, "gait", finger)
+    shorter = res
+    for _ in range(GAIT_RETRIES if bad and res.p_object_tip_goal is not None else 0):
+        shorter = run.gait_nlps[finger].solve(run.q, run.T_palm_object, res.p_object_tip_goal,
+                                              eta=0.5 * shorter.eta)
+        run.timing["opt1"] += shorter.solve_time
+        run.solves["opt1"] += shorter.solves
+        if not shorter.success or _tip_move(run, finger, shorter.q) < _MIN_MOVE:
+            break
+        why, shorter_path = run.unrealisable(shorter.q, run.T_palm_object, "gait", finger)
+        if not why:
+            res, bad, path = shorter, "", shorter_path
+            break
     if bad:
         run.failures.append(f"gait of {finger} at step {len(run.steps)} refused: {bad}")
         return False

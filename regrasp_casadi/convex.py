@@ -51,6 +51,7 @@ __all__ = [
     "LOCAL_PIECES",
     "LOCAL_PLANES",
     "add_edge_planes",
+    "hull_piece",
     "cache_dir",
     "coarse_pieces",
     "convex_pieces",
@@ -415,6 +416,15 @@ def _decompose(mesh: trimesh.Trimesh, threshold: float, max_pieces: int, seed: i
              time.monotonic() - t0, path)
     _write_cache(path, pieces, mesh_hash, params, timed_out)
     return pieces
+
+
+def hull_piece(vertices: NDArray) -> ConvexPiece | None:
+    """The convex hull of `vertices` (v, 3), m, with every face plane and the edge planes of
+    `add_edge_planes`: its max of plane distances is a lower bound of the hull's Euclidean distance
+    outside that the edge planes keep close near edges and corners (the cup's wall pieces: within 0.7 mm
+    at a fingertip's radius, tests/test_walls_tip_model.py); None if the points span no volume. For a
+    model that only ever reads a few planes at a time (`select_local_planes`)."""
+    return _piece_or_none(vertices, 10**6)
 
 
 def _piece_or_none(vertices: NDArray, max_planes: int, edge_planes: bool = True) -> ConvexPiece | None:

@@ -63,6 +63,10 @@ class FingerGaitResult(_solver.SolveStats):
     min_self_clearance: float = float("inf")
     """Smallest surface distance of the finger's spheres to the other fingers' and the palm's spheres
     (the constrained pairs), m (inf without self-collision constraints)."""
+    p_object_tip_goal: NDArray[np.float64] | None = None
+    """The goal tip-sphere centre the gait was solved towards, (3,) object frame, m."""
+    eta: float = ETA
+    """The step bound of the solve, m (the options' η or the shorter one asked for)."""
 
 
 def _param_layout(n: int, k: int, n_planes: int) -> _solver.ParamLayout:
@@ -110,7 +114,9 @@ class FingerGaitNLP:
     (`ObjectModel.local_planes`, passed as parameters, so the NLP does not grow with the mesh); for the
     other spheres, from the coarse pieces (`clearance_distance_function`). The offsets δ (parameters)
     make contacts exact: after a solve, δ = SD_exact − SD_smooth at the solution and the NLP is solved
-    again (warm started) until the tip sits on the real mesh within `surface_tol`.
+    again (warm started) until the tip sits on the real mesh within `surface_tol`. Where that loop does
+    not settle (the offsets of one solution do not fit the next), the iterate nearest the goal whose
+    other spheres are clear is moved onto the exact surface by Newton steps of the tip (`_polished`).
 
     Self-collision (not in the paper; `options.self_clearance` = c, None: off): every sphere a of the
     finger (tip included) keeps ``|c_a(Θ^r) − c_b| − ρ_a − ρ_b ≥ c`` from every sphere b of the other
@@ -256,12 +262,76 @@ class FingerGaitNLP:
             planes = self.obj.local_planes(selection, self._n_local)
             return ev.exact - self._smooth(x, params(np.zeros(1 + self._k), planes)), planes
 
+        iterates: list[tuple[NDArray[np.float64], _Evaluation]] = []
+
+        def evaluate(x, offsets) -> _Evaluation:
+            ev = self._evaluate(x, params(*offsets))
+            iterates.append((np.array(x, dtype=float), ev))
+            return ev
+
         start = self._evaluate(x0, params(np.zeros(1 + self._k), planes))
-        corr = _solver.correct_offsets(solve_with, lambda x, offsets: self._evaluate(x, params(*offsets)),
+        corr = _solver.correct_offsets(solve_with, evaluate,
                                        done, new_offsets, offsets=(start.exact - start.smooth, planes),
                                        x=x0, evaluation=start, max_solves=o.max_corrections + 1,
                                        accept=_solver.clipped_if_finite(self._bounds))
-        return self._result(q, c0, corr, floor, o)
+        if not corr.converged:
+            corr = self._polished(corr, iterates, q=q, T=T, c0=c0, c_goal=c_goal,
+                                  p=params(np.zeros(1 + self._k), planes), done=done, o=o)
+        return replace(self._result(q, c0, corr, floor, o), p_object_tip_goal=c_goal, eta=float(o.eta))
+
+    def _polished(self, corr: _solver.Correction[_Evaluation],
+                  iterates: list[tuple[NDArray[np.float64], _Evaluation]], *, q, T, c0, c_goal, p, done,
+                  o: FingerGaitOptions) -> _solver.Correction[_Evaluation]:
+        """`corr` with its point replaced by the first of the correction loop's iterates (nearest the goal
+        tip centre `c_goal` (3,), object frame, m, first) whose tip, moved onto the exact surface along its
+        exact normal (`_polish_tip`), passes `done`, ends closer to `c_goal` than the start tip centre `c0`
+        (3,) and within the step bound η of it; `corr` itself when none does.
+
+        Why: where the smooth model's error changes quickly along the surface (a rounded rim a few mm
+        across, under a 14 mm tip sphere), the offsets δ = exact − smooth of one iterate do not fit the
+        next one, and the loop alternates between two points (tip 0.5 mm into the wall, then a link
+        0.7 mm into it, ...) until `max_corrections`. One of them is usually clear of the object with
+        the tip off the surface by a fraction of a millimetre, which a few Newton steps on the exact
+        distance correct. `p`: parameters of the smooth evaluation (offsets unused by it)."""
+        for x, ev in sorted(iterates, key=lambda it: float(np.linalg.norm(it[1].p_object_tip - c_goal))):
+            if self._k and np.min(ev.exact[1:] - self._radii) < 0.5 * o.beta:
+                continue  # a link in the object: moving the tip does not clear it
+            polished = self._polish_tip(q, T, x, ev, p)
+            if polished is None:
+                continue
+            x_new, ev_new = polished
+            closer = np.linalg.norm(ev_new.p_object_tip - c_goal) < np.linalg.norm(c0 - c_goal)
+            if done(ev_new) and closer and np.linalg.norm(ev_new.p_object_tip - c0) <= o.eta + 1e-6:
+                _log.debug("gait %s: correction loop polished onto the exact surface", self.finger)
+                return replace(corr, x=x_new, evaluation=ev_new, converged=True)
+        return corr
+
+    def _polish_tip(self, q, T, x, ev: _Evaluation, p, iters: int = 5, max_error: float = 2e-3
+                    ) -> tuple[NDArray[np.float64], _Evaluation] | None:
+        """Newton steps moving the tip centre along its exact contact normal by −(SD_exact − ρ) with the
+        finger's joints (`tip_ik`, within the joint limits), from the finger joints `x` (n_r,) rad of the
+        grasp (`q` (n,) rad, `T` (4, 4) palm ← object); `p`: the smooth evaluation's parameters.
+        Returns (joints (n_r,), evaluation) once the tip is within `surface_tol` (m) of the surface, None
+        when it is not after `iters` steps or starts farther than `max_error` (m) from it."""
+        from regrasp_casadi.tip_ik import tip_ik
+
+        rho, tol = self.hand.tip_radius, self.options.surface_tol
+        if abs(ev.exact[0] - rho) > max_error:
+            return None
+        q_full = np.array(q, dtype=float)
+        for _ in range(iters):
+            err = float(ev.exact[0] - rho)
+            if abs(err) <= tol:
+                return np.asarray(x, dtype=float), ev
+            closest, _ = self.obj.closest_points(ev.p_object_tip[None])
+            normal = ev.p_object_tip - closest[0]  # outward: the tip centre is outside the mesh
+            normal /= max(float(np.linalg.norm(normal)), 1e-12)
+            q_full[self._idx] = x
+            target = T[:3, :3] @ (ev.p_object_tip - err * normal) + T[:3, 3]  # palm frame, m
+            q_new, _ = tip_ik(self.hand, q_full, [self.finger], target[None], self._idx, q_full, max_iters=10)
+            x = q_new[self._idx]
+            ev = self._evaluate(x, p)
+        return (np.asarray(x, dtype=float), ev) if abs(ev.exact[0] - rho) <= tol else None
 
     def _step_bounds(self, bounds: _solver.Bounds, eta: float) -> _solver.Bounds:
         """`bounds` with the step bound `eta`, m (constraint row 1 + k: the tip's squared step, cm²)."""

@@ -42,6 +42,7 @@ from regrasp_casadi.convex import (
     ConvexPiece,
     coarse_pieces,
     convex_pieces,
+    hull_piece,
     select_local_planes,
 )
 from regrasp_casadi.errors import MeshError
@@ -153,12 +154,17 @@ class ObjectModel:
     """
 
     def __init__(self, name: str, mesh: trimesh.Trimesh, pieces: tuple[ConvexPiece, ...], spec: dict, *,
-                 clearance_pieces: tuple[ConvexPiece, ...] | None = None):
+                 clearance_pieces: tuple[ConvexPiece, ...] | None = None,
+                 local_pieces: tuple[ConvexPiece, ...] | None = None):
         self.name = name
         self.mesh = mesh
         self.pieces = tuple(pieces)
         self.clearance_pieces = None if clearance_pieces is None else tuple(clearance_pieces)
         """Coarser pieces that also contain the mesh, for `clearance_distance_function` (None: `pieces`)."""
+        self.local_pieces = self.pieces if local_pieces is None else tuple(local_pieces)
+        """The pieces `local_planes` selects from (the fingertips' distance in OPT1 and OPT2): `pieces`, or,
+        for the thin-walled shapes (`_walled`), the same hulls with every face plane and edge planes
+        (`convex.hull_piece`), where `pieces` keeps the fewest face planes for the full smooth model."""
         self.spec = dict(spec)
         self._sd_functions: dict[tuple, ca.Function] = {}
         self._sd_maps: dict[tuple[float, int], ca.Function] = {}
@@ -327,7 +333,10 @@ class ObjectModel:
         """A thin-walled generated shape (`shapes.<name>_mesh(**dims)`): its convex pieces by construction
         (decomposition "walls": `shapes.<name>_pieces(**dims, tolerance=tolerance)`, each with the fewest
         face planes, at most `max_planes`, whose polytope reaches at most `tolerance` beyond its hull,
-        `piece_count.fewest_planes_piece`; no edge planes) or by coacd ("coacd", `threshold`)."""
+        `piece_count.fewest_planes_piece`; no edge planes, which the full smooth model and the grasp NLP
+        use; the fingertips' local planes select from the same hulls with all their face planes and
+        edge planes, `local_pieces`)
+        or by coacd ("coacd", `threshold`)."""
         from regrasp_casadi.piece_count import PLANE_COUNTS, fewest_planes_piece
 
         mesh = getattr(shapes, f"{name}_mesh")(**dims)
@@ -347,8 +356,10 @@ class ObjectModel:
         coarse_tol = CLEARANCE_WALL_FACTOR * float(tolerance)
         coarse = [fewest_planes_piece(v, coarse_tol, counts)
                   for v in getattr(shapes, f"{name}_pieces")(**dims, tolerance=coarse_tol)]
+        local = [hull_piece(v) for v in vertex_sets]
         return cls(name, mesh, tuple(pc for pc in pieces if pc is not None), spec,
-                   clearance_pieces=tuple(pc for pc in coarse if pc is not None))
+                   clearance_pieces=tuple(pc for pc in coarse if pc is not None),
+                   local_pieces=tuple(pc for pc in local if pc is not None))
 
     @classmethod
     def bowl(cls, radius: float = 0.06, wall: float = 0.004, *, decomposition: str = "walls",
@@ -488,7 +499,7 @@ class ObjectModel:
 
         See `convex.select_local_planes` (the nearest pieces, their largest planes at the points).
         """
-        return select_local_planes(self.pieces, points, n_pieces, k)
+        return select_local_planes(self.local_pieces, points, n_pieces, k)
 
     def signed_distance_map_function(self, k: int, tau: float | None = None) -> ca.Function:
         """Vectorised smooth distance: points (3, k), object frame -> d (1, k), m (cached)."""

@@ -31,6 +31,7 @@ from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions
 from regrasp_casadi.solver import NLPCache
 from regrasp_casadi.stability import holding_quality, torque_reference
+from regrasp_casadi.stall_report import stalled_fingers
 from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories, motion_context, step_path
 
 if TYPE_CHECKING:
@@ -379,6 +380,8 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
         elif watch.exhausted:
             hint = pinned_opposer_hint(run.obj, run.fingers, run.steps[-1], options.zeta) \
                 if options.stability == "force_closure" else ""
+            hint += stalled_fingers(run.hand, run.obj, run.q, run.T_palm_object, run.goal_tips,
+                                    run.steps[-1].contact_error, options.zeta)
             if run.failures and len(run.steps) == n_steps_before:  # the last iteration could not move
                 return _make_plan(grasp0, grasp_goal, options, t_start, run, "solver_failure",
                                   "; ".join(run.failures) + hint)

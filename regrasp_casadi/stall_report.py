@@ -1,0 +1,82 @@
+"""Why the fingers of a stalled plan are not at their goal contacts: a sentence per finger still farther
+than ζ, from checks independent of the NLPs at the plan's last grasp, for the plan's `status_detail`.
+
+* **In the way**: the straight line from the finger's tip centre to its goal tip centre (object frame),
+  which OPT1's cost pulls the tip along, passes through the object (exact signed distance < 0 at one of
+  its samples): the goal is across a wall, a rim or a handle, and η-bounded gaits that each lower that
+  distance cannot go around it. Where the line stays outside but closer than a tip radius, the tip
+  sphere would cut into the object on the way (reported as such).
+* **Out of reach**: the finger's tip cannot be put on its goal at the current object pose within the
+  joint limits (damped least-squares IK, `tip_ik`, collisions ignored), or only with one of its other
+  collision spheres in the object (exact distance): the object must move first.
+
+    >>> stalled_fingers(hand, obj, q, T_palm_object, goal_tips_object, contact_error, zeta)
+    '; not at their goals: ring 37.8 mm (the object lies between its tip and its goal: ...)'
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from regrasp_casadi.tip_ik import tip_ik
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.hand import Hand
+    from regrasp_casadi.objects import ObjectModel
+
+__all__ = ["stalled_fingers", "REACH_TOL"]
+
+REACH_TOL = 1e-3
+"""A finger whose IK gets its tip centre no closer than this to its goal cannot reach it, m."""
+
+
+def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDArray,
+                    goal_tips_object: NDArray, contact_error: NDArray, zeta: float, *,
+                    n_samples: int = 41) -> str:
+    """"; not at their goals: <finger> <error> mm (<why>) | ..." for every finger whose contact error
+    exceeds `zeta`, or "" when none does.
+
+    Args:
+        hand: the hand.
+        obj: the object (exact distances).
+        q: (n,) joints of the grasp, rad.
+        T_palm_object: (4, 4) object pose of the grasp, palm frame, m.
+        goal_tips_object: (m, 3) goal tip-sphere centres, object frame, m (`Grasp.tip_centers_object`).
+        contact_error: (m,) distance of each contact to its goal contact, m.
+        zeta: ζ, m.
+        n_samples: samples of each straight tip-to-goal line.
+    """
+    R, t = np.asarray(T_palm_object, float)[:3, :3], np.asarray(T_palm_object, float)[:3, 3]
+    tips = (np.asarray(hand.tip_positions(q), float) - t) @ R
+    rho = float(hand.tip_radius)
+    s = np.linspace(0.0, 1.0, n_samples)[:, None]
+    parts = []
+    for r, finger in enumerate(hand.fingers):
+        if contact_error[r] <= zeta:
+            continue
+        goal = np.asarray(goal_tips_object[r], float)
+        line = tips[r] + s * (goal - tips[r])
+        least = float(np.min(obj.exact_signed_distance(line)))
+        why = []
+        if least < 0.0:
+            why.append(f"the object lies between its tip and its goal: the straight line passes "
+                       f"{-least * 1e3:.1f} mm inside it")
+        elif least < rho - 1e-4:
+            why.append(f"its tip sphere would cut {(rho - least) * 1e3:.1f} mm into the object on the "
+                       f"straight line to its goal")
+        q = np.asarray(q, float)
+        q_goal, e = tip_ik(hand, q, [finger], (R @ goal + t)[None], np.asarray(hand.finger_joints[finger]), q)
+        if float(np.linalg.norm(e)) > REACH_TOL:
+            why.append(f"out of its reach at this object pose (its tip gets no closer than "
+                       f"{float(np.linalg.norm(e)) * 1e3:.1f} mm)")
+        else:  # reached: with its other links clear of the object?
+            links = (np.asarray(hand.sphere_centers(q_goal, finger), float).reshape(-1, 3) - t) @ R
+            depth = float(np.min(obj.exact_signed_distance(links) - hand.sphere_radii(finger)))
+            if depth < 0.0:
+                why.append(f"at this object pose its tip reaches the goal only with a link "
+                           f"{-depth * 1e3:.1f} mm in the object")
+        parts.append(f"{finger} {contact_error[r] * 1e3:.1f} mm" + (f" ({'; '.join(why)})" if why else ""))
+    return "; not at their goals: " + " | ".join(parts) if parts else ""
