@@ -20,11 +20,14 @@ from regrasp_casadi.resources import builtin_problem
 
 PROBLEMS = [str(builtin_problem("box_rotate")), str(builtin_problem("box_shift"))]
 METHODS = ("svd", "sd")
+SHORT = {"max_iters": 6}
+"""Planner overrides of the backend comparisons: six iterations of each plan (gaits, slides, reposings,
+every NLP of the box built) compare the backends as well as whole plans, in a fraction of the time."""
 
 
 @pytest.fixture(scope="module")
 def serial() -> list[BatchResult]:
-    return plan_many(PROBLEMS, backend="serial", methods=METHODS, progress=False)
+    return plan_many(PROBLEMS, backend="serial", methods=METHODS, progress=False, **SHORT)
 
 
 def _assert_same_plans(results: list[BatchResult], reference: list[BatchResult]) -> None:
@@ -48,9 +51,9 @@ def test_serial_is_plan_regrasp(serial):
     assert [(r.problem, r.method) for r in serial] == [
         ("box_rotate", "svd"), ("box_rotate", "sd"), ("box_shift", "svd"), ("box_shift", "sd")]
     problem = RegraspProblem.load(PROBLEMS[1])
-    direct = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd")
+    direct = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", **SHORT)
     got = serial[2]
-    assert got.plan.status == direct.status  # "stalled" with the certified planner (measured)
+    assert got.plan.status == direct.status
     assert got.plan.iterations == direct.iterations
     assert np.array_equal(got.plan.steps[-1].q, direct.steps[-1].q)
     assert got.verified is verify(direct, problem.hand, problem.obj).ok is True
@@ -61,7 +64,7 @@ def test_serial_is_plan_regrasp(serial):
 def test_process_backend_is_serial(serial):
     """Two worker processes, the problems given once as a loaded object and once as a path."""
     problems = [RegraspProblem.load(PROBLEMS[0]), PROBLEMS[1]]
-    results = plan_many(problems, backend="process", workers=2, methods=METHODS, progress=False)
+    results = plan_many(problems, backend="process", workers=2, methods=METHODS, progress=False, **SHORT)
     _assert_same_plans(results, serial)
     assert results[0].path == PROBLEMS[0] and results[2].path == PROBLEMS[1]
 
@@ -70,7 +73,7 @@ def test_ray_backend_is_serial(serial):
     ray = pytest.importorskip("ray")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
-        results = plan_many(PROBLEMS, backend="ray", methods=METHODS, progress=False)
+        results = plan_many(PROBLEMS, backend="ray", methods=METHODS, progress=False, **SHORT)
         assert ray.is_initialized()  # a Ray started by the caller is left running
     finally:
         ray.shutdown()
@@ -81,7 +84,7 @@ def test_ray_backend_is_serial(serial):
 
 def test_an_exception_is_recorded_and_the_others_plan(tmp_path):
     missing = tmp_path / "missing.yaml"
-    results = plan_many([missing, PROBLEMS[1]], backend="process", workers=2, progress=False)
+    results = plan_many([missing, PROBLEMS[1]], backend="process", workers=2, progress=False, **SHORT)
     bad, good = results
     assert bad.plan is None and bad.status == "error" and not bad.ok
     assert bad.error.startswith("ProblemFileError:") and "missing.yaml" in bad.error
@@ -106,7 +109,7 @@ def test_nlps_are_reused_across_problems_of_one_object(monkeypatch):
     monkeypatch.setattr(ca, "nlpsol", counting)
     seen = []
     results = plan_many(PROBLEMS, backend="serial", progress=False,
-                        on_result=lambda r: seen.append(len(built)))
+                        on_result=lambda r: seen.append(len(built)), **SHORT)
     assert [r.error for r in results] == [None, None]
     first, second = seen
     assert first > 0 and second == first, built
