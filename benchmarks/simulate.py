@@ -280,7 +280,7 @@ def _args(argv):
                     default=[c for c in GRAVITY if c != "support"])
     ap.add_argument("--grip", choices=("balanced", "squeeze"), default="balanced")
     ap.add_argument("--gait-order", default=None, help="planner gait_order (default: the planner's)")
-    ap.add_argument("--per-step", action="store_true", help="every step alone, held % per step kind")
+    ap.add_argument("--per-step", action="store_true", help="every step alone, held %% per step kind")
     ap.add_argument("--feedback", choices=("object_pose", "none"), default="object_pose",
                     help="SimOptions.feedback: closed loop on the object pose (default) or open loop")
     ap.add_argument("--workers", type=int, default=1, help="plans planned and executed in parallel")
@@ -290,8 +290,9 @@ def _args(argv):
                     help="the gravity certificate's least normal force of every holding finger, N (HoldingOptions)")
     ap.add_argument("--min-load-share", type=float, default=None,
                     help="the gravity certificate's least normal force as a share of m g / k, k holding fingers")
-    ap.add_argument("--slide-drag-range", action="store_true",
-                    help="certify slides for any drag from none to the full kinetic friction (HoldingOptions)")
+    ap.add_argument("--drag-only", action="store_true",
+                    help="certify slides with their full kinetic drag only, not also without it (before "
+                         "2026-12-02; HoldingOptions.slide_drag_range=False)")
     ap.add_argument("--max-normal-force", type=float, default=None,
                     help="the gravity certificate's bound on each normal force, N (HoldingOptions)")
     ap.add_argument("--out", type=pathlib.Path, default=None, help="JSON file for the records")
@@ -318,7 +319,7 @@ def _job(job: tuple) -> tuple[list[dict], list[dict], list[dict]]:
                                      ("max_normal_force", args.max_normal_force),
                                      ("min_normal_force", args.min_normal_force),
                                      ("min_load_share", args.min_load_share),
-                                     ("slide_drag_range", args.slide_drag_range or None)) if v is not None}
+                                     ("slide_drag_range", False if args.drag_only else None)) if v is not None}
         plan, verified, plan_s = make_plan(problem, method, kind, args.gait_order,
                                            condition_gravity(conditions[0], problem), mass, holding)
         head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,

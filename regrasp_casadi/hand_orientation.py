@@ -9,7 +9,7 @@ with any margin, the drag and the others' friction acting on opposite faces and 
 squarely (one face of a box); where they spread over curved or adjacent faces some slides certify, but
 not enough: on box_shift (svd) four certified thumb slides bring the thumb from 31 to 17 mm of its goal
 and the plan stops there. Every shipped problem's goal moves the thumb by 3–5 cm, and the certified
-planner (`stability="force_closure"`) converges on none of them.
+planner (`stability="force_closure"`) converges on 1 of the 10 plans (box_shift sd; benchmarks/README.md).
 
 Under gravity the weight can do the thumb's work: oriented so that gravity presses the object onto the
 fingers that oppose the thumb, those fingers carry it while the thumb slides or lifts, and the gravity
