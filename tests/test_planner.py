@@ -124,9 +124,9 @@ def test_a_plan_keeps_its_nlps_in_the_cache_it_is_given(box):
 
 
 def test_same_input_same_plan(box):
-    a = plan_regrasp(box.grasp0, box.grasp_goal, method="svd")
-    b = plan_regrasp(box.grasp0, box.grasp_goal, method="svd")
-    assert len(a.steps) == len(b.steps)
+    a = plan_regrasp(box.grasp0, box.grasp_goal, method="svd", max_iters=8)
+    b = plan_regrasp(box.grasp0, box.grasp_goal, method="svd", max_iters=8)
+    assert len(a.steps) == len(b.steps) > 8
     for sa, sb in zip(a.steps, b.steps, strict=True):
         assert np.array_equal(sa.q, sb.q) and np.array_equal(sa.T_palm_object, sb.T_palm_object)
 
