@@ -225,6 +225,12 @@ class GravityHold:
     """Least normal force of every contact in the forces that hold the weight itself, N (a reserve: a
     contact that carries almost nothing is lost to the least disturbance; the weight scale s of the
     margin is computed without it)."""
+    torque_maps: NDArray[np.float64] | None = None
+    """(k, J, 3) joint torques of each contact's finger per newton of its force on the object (object
+    frame), N·m/N: τ_i = M_i f_i = J_iᵀ R_palm_object f_i for the tip Jacobian J_i (J joints; rows of
+    fingers with fewer joints zero). None: no torque bound."""
+    max_joint_torque: float = math.inf
+    """Bound on every |τ_ij| of `torque_maps`, N·m (holds the weight scale s of the margin too)."""
 
     def __post_init__(self) -> None:
         weight = np.asarray(self.weight, float).reshape(3)
@@ -235,6 +241,24 @@ class GravityHold:
         object.__setattr__(self, "normals", n / np.linalg.norm(n, axis=1, keepdims=True))
         object.__setattr__(self, "weight", weight)
         object.__setattr__(self, "center", np.asarray(self.center, float).reshape(3))
+        if self.torque_maps is not None:
+            M = np.asarray(self.torque_maps, float)
+            if M.ndim != 3 or M.shape[0] != len(self.contacts) or M.shape[2] != 3:
+                raise ValueError(f"torque_maps must be (k, J, 3) for k = {len(self.contacts)} contacts, "
+                                 f"got shape {M.shape}")
+            object.__setattr__(self, "torque_maps", M)
+
+    @property
+    def torque_bounded(self) -> bool:
+        """Whether the joint torques are bounded (`torque_maps` given, finite `max_joint_torque`)."""
+        return self.torque_maps is not None and math.isfinite(self.max_joint_torque)
+
+    def joint_torques(self, forces: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(k, J) joint torques of `forces` (k, 3), N·m (zeros without `torque_maps`)."""
+        f = np.asarray(forces, float).reshape(-1, 3)
+        if self.torque_maps is None:
+            return np.zeros((len(f), 1))
+        return np.einsum("kjd,kd->kj", self.torque_maps, f)
 
     @property
     def mu_i(self) -> NDArray[np.float64]:
@@ -258,13 +282,25 @@ class GravityHold:
             np.max(np.abs(np.cross(c - self.center, f).sum(axis=0))),
             np.max(self.min_normal_force - a), np.max(a - self.max_normal_force),
             np.max(tangential - self.mu_i * a),
+            np.max(np.abs(self.joint_torques(f))) - self.max_joint_torque,
         ))
+
+    def torque_rows(self, F: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Rows (A, b) of |τ_ij| ≤ max_joint_torque, A x ≤ b, for stacked forces F x (F (3k, v)); empty
+        without a torque bound."""
+        if not self.torque_bounded:
+            return np.zeros((0, F.shape[1])), np.zeros(0)
+        rows = [self.torque_maps[i] @ F[3 * i:3 * i + 3] for i in range(len(self.contacts))]
+        T = np.vstack(rows)
+        T = T[np.abs(T).max(axis=1) > 0]
+        A = np.vstack([T, -T])
+        return A, np.full(len(A), float(self.max_joint_torque))
 
 
 def _socp_hold(hold: GravityHold, E, B, a_col, scale_free: bool):
     """Clarabel: forces x (local variables) with E B x + s·wrench = 0 (scale_free: maximise s ≥ 0,
-    0 ≤ a_i ≤ f_max) or E B x = −wrench (minimise ‖x‖², f_min ≤ a_i ≤ f_max), (μ_i a_i, u_i, v_i) ∈ SOC₃.
-    -> (x, s) or None."""
+    0 ≤ a_i ≤ f_max) or E B x = −wrench (minimise ‖x‖², f_min ≤ a_i ≤ f_max), (μ_i a_i, u_i, v_i) ∈ SOC₃,
+    and |M_i (B x)_i| ≤ τ_max with a torque bound. -> (x, s) or None."""
     mu_i, wrench, f_max = hold.mu_i, hold.wrench, float(hold.max_normal_force)
     f_min = 0.0 if scale_free else float(hold.min_normal_force)
     import clarabel
@@ -285,6 +321,8 @@ def _socp_hold(hold: GravityHold, E, B, a_col, scale_free: bool):
         e = np.zeros(nv)
         e[-1] = -1.0
         nonneg.append((e, 0.0))
+    A_tau, b_tau = hold.torque_rows(B)  # |τ| ≤ τ_max, on the forces B x
+    nonneg += [(np.concatenate([r, np.zeros(nv - B.shape[1])]), v) for r, v in zip(A_tau, b_tau, strict=True)]
     rows.append(np.array([r for r, _ in nonneg]))
     b.append(np.array([v for _, v in nonneg]))
     cones.append(clarabel.NonnegativeConeT(len(nonneg)))
@@ -313,8 +351,9 @@ def _socp_hold(hold: GravityHold, E, B, a_col, scale_free: bool):
 
 def _lp_hold(hold: GravityHold, E, length, n_edges, scale_free: bool):
     """HiGHS fallback with inscribed linearised cones: forces Σ_j β_ij e_ij (β ≥ 0, e_ij the edges of
-    unit normal force), Σ_j β_ij ≤ f_max; maximise s (scale_free) or minimise the largest normal force
-    for the weight itself, with Σ_j β_ij ≥ f_min. -> (stacked forces (3k,), s) or None."""
+    unit normal force), Σ_j β_ij ≤ f_max, joint torques within the bound; maximise s (scale_free) or
+    minimise the largest normal force for the weight itself, with Σ_j β_ij ≥ f_min. -> (stacked forces
+    (3k,), s) or None."""
     normals, contacts, mu_i = hold.normals, hold.contacts, hold.mu_i
     center, wrench, f_max = hold.center, hold.wrench, float(hold.max_normal_force)
     from scipy.optimize import linprog
@@ -345,6 +384,10 @@ def _lp_hold(hold: GravityHold, E, length, n_edges, scale_free: bool):
             b_ub = np.concatenate([b_ub, np.full(k, -float(hold.min_normal_force))])
         c[-1] = 1.0
         bounds = [(0, None)] * ne + [(0, f_max)]
+    A_tau, b_tau = hold.torque_rows(F)  # |τ| ≤ τ_max, on the forces F β
+    if len(A_tau):
+        A_ub = np.vstack([A_ub, np.hstack([A_tau, np.zeros((len(A_tau), 1))])])
+        b_ub = np.concatenate([b_ub, b_tau])
     res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs")
     if res.status != 0:
         return None
@@ -356,7 +399,8 @@ def gravity_certificate(hold: GravityHold, solver: Literal["auto", "socp", "lp"]
     """Gravity-hold certificate: can the contacts of `hold` hold its weight?
 
     Finds contact forces f_i (on the object) with normal force a_i = −f_i·n_i ∈ [0, max_normal_force],
-    tangential part ‖f_i + a_i n_i‖ ≤ μ_i a_i, Σ f_i + weight = 0 and Σ (c_i − center) × f_i = 0.
+    tangential part ‖f_i + a_i n_i‖ ≤ μ_i a_i, Σ f_i + weight = 0 and Σ (c_i − center) × f_i = 0, and,
+    with `hold.torque_maps`, every joint torque |M_i f_i| ≤ max_joint_torque.
     margin = the largest s for which s·weight can be held (held ⇔ s ≥ 1); forces = the least-norm
     forces (min Σ‖f_i‖²) for the weight itself, (k, 3), N, object frame, each normal force at least
     `min_normal_force` (held ⇔ s ≥ 1 and such forces exist).
@@ -395,9 +439,13 @@ def gravity_certificate(hold: GravityHold, solver: Literal["auto", "socp", "lp"]
     ok = forces is not None
     w = float(np.linalg.norm(hold.weight))
     detail = f"{'holds' if ok else 'cannot hold'} {w:.3g} N with {len(c)} contacts ({solver}): scale {s:.3g}"
+    if hold.torque_bounded:
+        detail += f" (joint torques ≤ {hold.max_joint_torque:.3g} N·m)"
     if ok:
         a = -np.sum(forces * hold.normals, axis=1)
         detail += f", normal forces {float(np.min(a)):.3g}–{float(np.max(a)):.3g} N"
+        if hold.torque_bounded:
+            detail += f", largest joint torque {float(np.max(np.abs(hold.joint_torques(forces)))):.3g} N·m"
     elif best and best[1] >= 1:
         detail += f", but not with every normal force ≥ {hold.min_normal_force:g} N"
     return Certificate("gravity", ok, s, forces, detail)
@@ -418,6 +466,8 @@ def certify_step(  # noqa: PLR0913 (the force-closure and the gravity data of a 
     sliding: NDArray[np.bool_] | None = None,
     max_normal_force: float = MAX_NORMAL_FORCE,
     min_normal_force: float = 0.0,
+    torque_maps: NDArray[np.float64] | None = None,
+    max_joint_torque: float = math.inf,
     solver: Literal["auto", "socp", "lp"] = "auto",
 ) -> Certificate:
     """The certificate of the holding set of one step (for a gait: every finger but the moving one).
@@ -438,6 +488,8 @@ def certify_step(  # noqa: PLR0913 (the force-closure and the gravity data of a 
         max_normal_force: bound on each normal force, N (gravity).
         min_normal_force: least normal force of every holding contact in the forces that hold the
             weight, N (gravity; `GravityHold.min_normal_force`).
+        torque_maps: (m, J, 3) joint torques of each finger per newton of its force on the object, N·m/N
+            (gravity; `GravityHold.torque_maps`), None: no torque bound; max_joint_torque: N·m.
         solver: see `gravity_certificate`.
 
     Returns:
@@ -454,8 +506,10 @@ def certify_step(  # noqa: PLR0913 (the force-closure and the gravity data of a 
     if mass is None or gravity_object is None or center is None:
         raise ValueError("a gravity certificate needs mass (kg), gravity_object (m/s²) and center (COM)")
     weight = float(mass) * np.asarray(gravity_object, float).reshape(3)
+    maps = None if torque_maps is None else np.asarray(torque_maps, float)[holding]
     cert = gravity_certificate(GravityHold(c[holding], n[holding], weight, center, mu_i, max_normal_force,
-                                           min_normal_force=min_normal_force), solver)
+                                           min_normal_force=min_normal_force, torque_maps=maps,
+                                           max_joint_torque=max_joint_torque), solver)
     if cert.forces is None:
         return cert
     forces = np.zeros((len(c), 3))

@@ -7,7 +7,7 @@ Every option default that stands for one of these symbols imports it from here:
 
 from __future__ import annotations
 
-__all__ = ["ZETA", "ETA", "BETA", "K_POS", "K_ORIENT", "MU", "SELF_CLEARANCE"]
+__all__ = ["ZETA", "ETA", "BETA", "K_POS", "K_ORIENT", "MU", "SELF_CLEARANCE", "JOINT_TORQUE"]
 
 ZETA = 0.006
 """ζ, threshold on the largest contact error that ends the regrasp, m (paper: 6 mm)."""
@@ -30,3 +30,8 @@ MU = 0.5
 SELF_CLEARANCE = 0.001
 """Clearance between the collision spheres of different fingers (and a finger and the palm) that OPT1,
 OPT2 and grasp generation keep, m (not the paper's: it has no self-collision constraint; 1 mm, like β)."""
+
+JOINT_TORQUE = 0.7
+"""Largest torque of an Allegro joint actuator, N·m (the vendor's stated joint torque; not the paper's:
+its planner has no force model). The simulation's actuators saturate at it; the planner's gravity
+certificates keep each holding finger's joint torques within a fraction of it."""

@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.constants import JOINT_TORQUE
 from regrasp_casadi.errors import ModelError
 
 __all__ = ["SimOptions", "SimModel", "build_model", "object_inertia", "OBJECT_BODY"]
@@ -78,7 +79,7 @@ class SimOptions:
     """Position-actuator gain (stiffness) of every joint, N·m/rad."""
     kv: float = 0.1
     """Position-actuator damping of every joint, N·m·s/rad."""
-    force_limit: float = 0.7
+    force_limit: float = JOINT_TORQUE
     """Torque limit of every actuator, N·m (the Allegro's stated joint torque)."""
     joint_damping: float = 0.02
     """Passive viscous damping of every joint, N·m·s/rad."""

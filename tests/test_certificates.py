@@ -128,6 +128,32 @@ def test_antipodal_least_norm_forces_are_the_closed_form():
                                atol=1e-5)
 
 
+@pytest.mark.parametrize("tau_max, solvers",
+                         [(0.05, ("socp", "lp")), (0.2, ("socp", "lp")), (1.0, ("socp",))])
+def test_joint_torque_bounds_the_pinch_by_the_closed_form(tau_max, solvers):
+    """The pinch of a 0.2 kg weight along y (normals ±x), each finger with two joints: τ₁ = L f_y (the
+    lever of the carried weight, L = 10 cm) and τ₂ = L₂ f_x (the squeeze's, L₂ = 2 cm). Each finger carries
+    s m g / 2 along y and squeezes at least that / μ, so the largest scale is
+    s = min(2 τ / (L m g), 2 μ τ / (L₂ m g), 2 μ F / (m g)); held iff s ≥ 1, the forces' torques within τ."""
+    mass, mu, f_max, L, L2 = 0.2, 0.5, 10.0, 0.1, 0.02
+    c, n = _antipodal(0.0)
+    maps = np.array([[[0.0, L, 0.0], [L2, 0.0, 0.0]]] * 2)
+    hold = GravityHold(c, n, weight=np.array([0.0, -mass * GRAVITY, 0.0]), center=np.zeros(3), mu=mu,
+                       max_normal_force=f_max, torque_maps=maps, max_joint_torque=tau_max)
+    mg = mass * GRAVITY
+    s = min(2 * tau_max / (L * mg), 2 * mu * tau_max / (L2 * mg), 2 * mu * f_max / mg)
+    for solver in solvers:
+        cert = gravity_certificate(hold, solver=solver)
+        assert cert.margin == pytest.approx(s, rel=1e-5), solver
+        assert cert.ok == (s >= 1.0)
+        if cert.ok:
+            assert np.max(np.abs(hold.joint_torques(cert.forces))) <= tau_max + 1e-7
+            assert hold.violation(cert.forces) <= 1e-6
+    # without the bound the friction and the normal-force bound alone decide
+    free = gravity_certificate(GravityHold(c, n, hold.weight, np.zeros(3), mu, f_max), solver="socp")
+    assert free.margin == pytest.approx(2 * mu * f_max / mg, rel=1e-5)
+
+
 def test_three_contacts_under_the_object_carry_a_third_each():
     mass = 0.3
     c, n = _triangle_on_bottom(h=0.02)
