@@ -43,7 +43,7 @@ from regrasp_casadi.certificates import (
     certify_step,
     object_mass,
 )
-from regrasp_casadi.constants import MU
+from regrasp_casadi.constants import JOINT_TORQUE, MU
 from regrasp_casadi.stability import (
     FRICTION_EDGES,
     contact_mu,
@@ -58,6 +58,10 @@ if TYPE_CHECKING:
     from regrasp_casadi.objects import ObjectModel
 
 __all__ = ["StabilityKind", "STABILITY_KINDS", "HoldingOptions", "Holding"]
+
+JOINT_TORQUE_RESERVE = 0.8
+"""Share of `constants.JOINT_TORQUE` the gravity certificate lets a holding finger use (the rest is for
+the motion and the controller's corrections)."""
 
 StabilityKind = Literal["force_closure", "gravity", "none"]
 """The certificate every step of a plan must have: force closure of the holding contacts, a gravity hold
@@ -81,6 +85,11 @@ class HoldingOptions:
     min_load_share: float = 0.0
     """Gravity: every holding finger presses with at least this fraction of an equal share of the weight,
     m g / k for k holding fingers (the least normal force is the larger of this and `min_normal_force`)."""
+    max_joint_torque: float | None = JOINT_TORQUE_RESERVE * JOINT_TORQUE
+    """Gravity: every joint torque of a holding finger, τ = Jᵀ f for its tip Jacobian J and the force f it
+    presses the object with, stays within this, N·m (by default 80 % of the Allegro's 0.7 N·m, the
+    reserve the simulation's grip keeps as well). None: no bound (the certificate of issue 14, which
+    verify checks: a finger may then be asked for forces its motors cannot make)."""
     density: float = DENSITY
     """Object density when the problem states no mass, kg/m³ (mass = mesh volume × density)."""
     min_margin: float = 1e-3
@@ -109,8 +118,8 @@ class HoldingOptions:
     """Largest distance of the sliding tip from the surface along a slide step (the joints moving
     linearly between its ends), m; a longer step is halved until it keeps this."""
     max_contact_slip: float = 0.9e-3
-    """A reposing or final move whose exact contacts move on the object by more than this is refused,
-    m (its certificate is of the contacts it ends with; verify allows 1 mm of slip)."""
+    """A reposing or final move whose tips slide over the object by more than this is refused, m
+    (`grasp_metrics.tip_slip`: rolling is not sliding; verify allows 1 mm of slip)."""
     lookahead: bool = True
     """A gait is accepted only where its new contact leaves some finger still to move (this round, else
     the next) with a certified lift; otherwise the gait is retried with a halved step bound."""
@@ -206,7 +215,7 @@ class Holding:
         """The certificate of a grasp that is not (yet) a hand configuration: contacts and outward
         normals (m, 3), object frame, object pose (4, 4) (gravity), `hold` and `sliding` (m,) bool;
         friction cones of `n_edges` edges (default `HoldingOptions.search_edges`; the step checks use
-        `stability.FRICTION_EDGES`)."""
+        `stability.FRICTION_EDGES`); no joint torque bound (no joint angles to take it from)."""
         self.evaluations += 1
         return self._compute(np.asarray(contacts, float), np.asarray(normals, float), np.asarray(hold, bool),
                              np.asarray(sliding, bool), np.asarray(T_palm_object, float),
@@ -259,18 +268,39 @@ class Holding:
                 normals = normals.copy()
                 for j in np.flatnonzero(sliding):
                     normals[j] = self.sliding_normal(normals[j], d)
-            self._certs[key] = self._compute(contacts, normals, np.array(hold), np.array(sliding), T)
+            maps = self.torque_maps(q, T) if self.kind == "gravity" else None
+            self._certs[key] = self._compute(contacts, normals, np.array(hold), np.array(sliding), T,
+                                             torque_maps=maps)
         return self._certs[key]
 
-    def _compute(self, contacts, normals, hold, sliding, T, n_edges: int = FRICTION_EDGES) -> Certificate:
+    def torque_maps(self, q: NDArray, T_palm_object: NDArray) -> NDArray | None:
+        """(m, J, 3) joint torques of each finger per newton of force its tip presses the object with,
+        object frame, N·m/N: J_fᵀ R_palm_object restricted to the finger's J joints (tip-sphere centre
+        Jacobian J_f, palm frame; the moment of a tangential force about the centre, tip radius × force,
+        is neglected). None without `HoldingOptions.max_joint_torque`."""
+        if self.options.max_joint_torque is None:
+            return None
+        q, R = np.asarray(q, float), np.asarray(T_palm_object, float)[:3, :3]
+        J_max = max(len(self.hand.finger_joints[f]) for f in self.fingers)
+        maps = np.zeros((len(self.fingers), J_max, 3))
+        for i, f in enumerate(self.fingers):
+            idx = self.hand.finger_joints[f]
+            maps[i, :len(idx)] = (self.hand.tip_jacobian(q, f)[:, idx]).T @ R
+        return maps
+
+    def _compute(self, contacts, normals, hold, sliding, T, n_edges: int = FRICTION_EDGES,
+                 torque_maps: NDArray | None = None) -> Certificate:
         o = self.options
         if self.kind == "gravity":
             solver = "auto" if n_edges == FRICTION_EDGES else "lp"
             f_min = max(o.min_normal_force, o.min_load_share * self.mass * float(np.linalg.norm(
                 self.gravity_palm)) / max(int(np.sum(hold)), 1))
+            tau = {} if torque_maps is None else {"torque_maps": torque_maps,
+                                                  "max_joint_torque": o.max_joint_torque}
             return certify_step(contacts, normals, hold, "gravity", o.mu, self.mass,
                                 T[:3, :3].T @ self.gravity_palm, center=self.com, sliding=sliding,
-                                max_normal_force=o.max_normal_force, min_normal_force=f_min, solver=solver)
+                                max_normal_force=o.max_normal_force, min_normal_force=f_min, solver=solver,
+                                **tau)
         mu_i = contact_mu(o.mu, len(contacts), sliding)[hold]
         eps = force_closure_quality(contacts[hold], normals[hold], mu_i, self.com, self.length, n_edges)
         ok = bool(eps > FORCE_CLOSURE_TOL)

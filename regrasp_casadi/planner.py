@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
@@ -22,7 +22,7 @@ from regrasp_casadi.certified_round import accept_gait, certified_round
 from regrasp_casadi.final_moves import FinalMoves, decide_status, pose_distance, run_final_moves
 from regrasp_casadi.finger_gait import FingerGaitNLP
 from regrasp_casadi.grasp import require_grasp
-from regrasp_casadi.grasp_metrics import slip_between
+from regrasp_casadi.grasp_metrics import tip_frames, tip_slip
 from regrasp_casadi.hand_orientation import pinned_opposer_hint
 from regrasp_casadi.holding import STABILITY_KINDS, Holding
 from regrasp_casadi.in_grasp import InGraspNLP, svd_target
@@ -197,17 +197,22 @@ class _Run:
 
     def uncertified(self, q: NDArray, T_palm_object: NDArray) -> str:
         """Why an in-grasp move to the grasp (q, T_palm_object) would not be certified, "" when it would
-        (always "" without stability): its grasp has no certificate, or a contact slips on the object
-        by more than `HoldingOptions.max_contact_slip` (the certificate is of the contacts it ends with)."""
+        (always "" without stability): its grasp has no certificate, or a tip slides over the object by
+        more than `HoldingOptions.max_contact_slip` (`grasp_metrics.tip_slip`; the certificate is of the
+        contacts it ends with, which a rolling tip moves)."""
         if self.holding is None:
             return ""
         cert = self.grasp_certificate(q, T_palm_object)
         if not self.holding.certified(cert):
             return f"its grasp is not certified ({cert.detail})"
-        contacts, _ = self.holding.contacts(q, T_palm_object)
-        slip = slip_between(self.steps[-1].contacts_object, contacts)  # the one slip definition
+        last = self.steps[-1]
+        (p_a, R_a), (p_b, R_b) = (tip_frames(self.hand, last.q, last.T_palm_object),
+                                  tip_frames(self.hand, q, T_palm_object))
+        n_a = self.holding.contacts(last.q, last.T_palm_object)[1]
+        n_b = self.holding.contacts(q, T_palm_object)[1]
+        slip = tip_slip(p_a, R_a, p_b, R_b, n_a + n_b, self.hand.tip_radius)  # the one slip definition
         if np.max(slip) > self.holding.options.max_contact_slip:
-            return f"a contact slips {np.max(slip) * 1e3:.2f} mm on the object"
+            return f"a tip slides {np.max(slip) * 1e3:.2f} mm over the object"
         return ""
 
     def unrealisable(self, q: NDArray, T_palm_object: NDArray, kind: str = "repose",
@@ -356,10 +361,24 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
 
 def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
              progress: ProgressCallback | None, stop: InterruptRequest) -> Plan:
-    """Algorithm 1's loop: gait rounds and reposings until the contacts are within ζ, the iteration
-    limit, a stall, or a Ctrl-C (`stop`: the plan so far, status "interrupted")."""
+    """Algorithm 1's loop: gait rounds and reposings until the contacts are within ζ, then the final
+    moves (and, when they stop on a drifting contact, `_regait` and on), the iteration limit, a stall,
+    or a Ctrl-C (`stop`: the plan so far, status "interrupted")."""
     watch = _ProgressWatch(options, run.largest_error())
-    while run.largest_error() > options.zeta and run.iterations < options.max_iters:
+    back: _Fallback | None = None  # the run's state before the last `_regait`
+
+    def end(status: str, detail: str) -> Plan:  # a plan that did not converge: before a failed regait
+        if back is None:
+            return _make_plan(grasp0, grasp_goal, options, t_start, run, status, detail)
+        return _finish(grasp0, grasp_goal, options, t_start, run, back.restore(run, status))
+
+    while run.iterations < options.max_iters:
+        if run.largest_error() <= options.zeta:
+            outcome = run_final_moves(run, options) if options.final_move else FinalMoves("not_run", 0, ())
+            state = _Fallback(len(run.steps), run.q, run.T_palm_object, outcome, run.iterations)
+            if not _regait(run, options, outcome):
+                return _finish(grasp0, grasp_goal, options, t_start, run, outcome)
+            back, watch = state, _ProgressWatch(options, run.largest_error())
         run.failures.clear()
         n_steps_before = len(run.steps)
         run.stalled = watch.stalled
@@ -383,20 +402,62 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
             hint += stalled_fingers(run.hand, run.obj, run.q, run.T_palm_object, run.goal_tips,
                                     run.steps[-1].contact_error, options.zeta)
             if run.failures and len(run.steps) == n_steps_before:  # the last iteration could not move
-                return _make_plan(grasp0, grasp_goal, options, t_start, run, "solver_failure",
-                                  "; ".join(run.failures) + hint)
-            return _make_plan(grasp0, grasp_goal, options, t_start, run, "stalled",
-                              f"largest contact error {run.largest_error() * 1e3:.2f} mm > ζ: no progress in "
-                              f"the last {watch.stalled} iterations{hint}")
+                return end("solver_failure", "; ".join(run.failures) + hint)
+            return end("stalled", f"largest contact error {run.largest_error() * 1e3:.2f} mm > ζ: no "
+                                  f"progress in the last {watch.stalled} iterations{hint}")
+    if back is not None and run.largest_error() > options.zeta:
+        return end("iteration_limit", "")
     return _finish(grasp0, grasp_goal, options, t_start, run)
 
 
-def _finish(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run) -> Plan:
-    """The plan of a run whose iterations ended: the final moves if the contacts are reached, then
-    "converged", "pose_not_reached" or "iteration_limit" (`final_moves.decide_status`)."""
-    outcome = FinalMoves("not_run", 0, ())
-    if options.final_move and run.largest_error() <= options.zeta:
-        outcome = run_final_moves(run, options)
+@dataclass(frozen=True)
+class _Fallback:
+    """The run's state when the final moves stopped and `_regait` went on: steps kept, joints, object
+    pose, the final moves' outcome and the iterations then."""
+
+    n_steps: int
+    q: NDArray
+    T_palm_object: NDArray
+    outcome: FinalMoves
+    iterations: int
+
+    def restore(self, run: _Run, status: str) -> FinalMoves:
+        """Drop the steps made since, return to that grasp; the outcome, noting how re-gaiting ended."""
+        tried = run.iterations - self.iterations
+        del run.steps[self.n_steps:]
+        run.q, run.T_palm_object = self.q, self.T_palm_object
+        note = (f"{self.outcome.note + '; ' if self.outcome.note else ''}re-gaiting towards the desired pose "
+                f"ended {status.replace('_', ' ')} after {tried} iterations; the plan ends before it")
+        return replace(self.outcome, note=note)
+
+
+def _regait(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
+    """After final moves that stopped short of the desired pose (`outcome`: the next would take a
+    contact beyond ζ, or was refused), one reposing towards it (`_Run.repose`, accepted when it brings
+    the object closer, wherever the contacts go); True when it was accepted and iterations remain, so
+    that gait rounds bring the contacts back (`PlannerOptions.final_regait`)."""
+    if not (options.final_regait and outcome.stop in _REGAIT_STOPS and run.iterations < options.max_iters):
+        return False
+    n_steps = len(run.steps)
+    run.repose(escape=True)
+    run.iterations += 1  # an iteration of its own: the loop ends within max_iters
+    run.errors.append(float(np.mean(run.steps[-1].contact_error)))
+    return len(run.steps) > n_steps
+
+
+_REGAIT_STOPS = ("contact_drift", "rejected", "unrealisable", "uncertified", "no_gain")
+"""Final-move stops after which `_regait` tries a reposing towards the desired pose."""
+
+
+def _finish(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
+            outcome: FinalMoves | None = None) -> Plan:
+    """The plan of a run whose iterations ended: the final moves (`outcome`, when they have run) if the
+    contacts are reached, then "converged", "pose_not_reached" or "iteration_limit"
+    (`final_moves.decide_status`)."""
+    if outcome is None:
+        outcome = FinalMoves("not_run", 0, ())
+        if options.final_move and run.largest_error() <= options.zeta:
+            outcome = run_final_moves(run, options)
     status, detail = decide_status(run, options, outcome)
     return _make_plan(grasp0, grasp_goal, options, t_start, run, status, detail)
 

@@ -61,6 +61,12 @@ class PlannerOptions:
     final_move: bool = True
     """Finish with in-grasp moves to the desired object pose (Algorithm 1, last lines; `final_moves`:
     each accepted move brings the object closer to it)."""
+    final_regait: bool = True
+    """When the final moves stop short of the desired pose (the next one would take a contact farther
+    than ζ from its goal, as rolling tips carry their contacts along, `InGraspOptions.rolling`, or it was
+    refused), repose towards the desired pose anyway (accepted when it brings the object closer) and go
+    on with gait rounds, which bring the contacts back, then try the final moves again (within
+    `max_iters`; `planner._regait`). False: stop there."""
     final_time_budget: float = 60.0
     """Time the final in-grasp moves may take, s (as many moves as fit; each is bounded by the OPT2
     trust region)."""
@@ -105,6 +111,9 @@ class PlannerOptions:
         "max_normal_force": ("holding",),
         "min_normal_force": ("holding",),
         "min_load_share": ("holding",),
+        "max_joint_torque": ("holding",),
+        "rolling": ("in_grasp",),
+        "gravity_margin": ("holding",),
         "slide_drag_range": ("holding",),
         "min_margin": ("holding",),
         "slide": ("holding",),

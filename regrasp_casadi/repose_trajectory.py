@@ -6,7 +6,8 @@ calls its gait paths and `slide_trajectory.slide_path` for the other kinds; the 
 
 Knots, s ∈ [0, 1]: the object pose T(s) is interpolated from step A's to step B's (translation linear,
 rotation geodesic: `transforms.interpolate_pose`); the tip centres are held in the object frame
-(interpolated linearly from A's to B's, which differ by OPT2's slip) and mapped by T(s); the joints come
+(interpolated linearly from A's to B's, which differ by the tips' rolling and OPT2's slip) and mapped
+by T(s); the joints come
 from the IK of `trajectory` for all fingers (damped least squares within the joint limits, warm started
 from the neighbouring knot, pulled towards the joint-space interpolation of A and B).
 
@@ -20,7 +21,8 @@ is what the interpolation rule (`motion.INTERPOLATION`) plays.
 
 Checks (the path's `ok` and `detail`), at every knot and at the midpoint of every segment (where the
 interpolation is farthest from the solved knots): the tips within `surface_tol` of the surface (exact
-distance − tip radius), the contacts within `max_slip` of step A's; at the knots: every non-tip sphere
+distance − tip radius), the tips' material sliding at most `max_slip` over the object along the path
+(`grasp_metrics.path_tip_slip`: a tip may roll); at the knots: every non-tip sphere
 (palm included) outside the object, no two fingers overlapping, the joints within their limits.
 Metrics (m): "max_surface_error", "max_slip", "max_ik_error" (the tips from their targets at the
 knots), "max_pose_correction" (how far the object's following moved a tip's target, palm frame),
@@ -35,6 +37,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.grasp_metrics import path_tip_slip, rolling_displacement, tip_frames
+from regrasp_casadi.stability import contact_normals
 from regrasp_casadi.tip_ik import tip_object_ik
 from regrasp_casadi.transforms import interpolate_pose, inv_T, transform_points
 
@@ -47,6 +51,10 @@ __all__ = ["repose_path", "FOLLOW_TOL"]
 
 COARSE_SPACING = 0.016
 """A reposing's first IK knots: one per this much motion of the hand's points, m (then bisection)."""
+
+ROLL_PASSES = 2
+"""IK passes per knot that move the tips' targets to where the tips roll to (`_rolling_tips`) after the
+first, which holds them on the chord between the step's ends."""
 
 FOLLOW_TOL = 1e-5
 """A knot whose tips the joints alone leave farther than this from their targets (m) is solved with the
@@ -62,6 +70,7 @@ def repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     T_a, T_b = np.asarray(a.T_palm_object, dtype=float), np.asarray(b.T_palm_object, dtype=float)
     tips_a = transform_points(inv_T(T_a), hand.tip_positions(q_a))
     tips_b = transform_points(inv_T(T_b), hand.tip_positions(q_b))
+    held_at = _rolling_tips(ctx, (q_a, T_a, tips_a), (q_b, T_b, tips_b))
     fingers = list(hand.fingers)
     ik_error = [0.0]  # the largest tip error of the IK knots, m
     poses: dict[float, NDArray] = {0.0: T_a, 1.0: T_b}  # s -> the pose of every solved knot
@@ -73,6 +82,9 @@ def repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
         q_lin = (1.0 - s) * q_a + s * q_b
         q, e = _ik(ctx, q_lin if warm is None else warm, fingers, transform_points(T_s, held),
                    ctx.finger_joints, q_lin)
+        for _ in range(ROLL_PASSES):  # the tips where they roll to as they turn
+            held = held_at(s, q, T_s)
+            q, e = _ik(ctx, q, fingers, transform_points(T_s, held), ctx.finger_joints, q_lin)
         T = T_s
         if float(np.max(np.linalg.norm(e, axis=1))) > FOLLOW_TOL:  # the object follows the hand
             q, T, e = tip_object_ik(hand, q, T_s, fingers, held, ctx.finger_joints, q_ref=q_lin, T_ref=T_s,
@@ -87,24 +99,45 @@ def repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     chord = float(ctx.segment_motion(np.stack([q_a, q_b]))[0])
     s_knots, Q, why = _knots(ctx, curve, int(math.ceil(chord / COARSE_SPACING)) + 1)
     Ts = _knot_poses(s_knots, poses)
-    held = [(1.0 - s) * tips_a + s * tips_b for s in s_knots]
+    held = [held_at(float(s), q, T) for s, q, T in zip(s_knots, Q, Ts, strict=True)]
     correction = max(float(np.max(np.linalg.norm(
         transform_points(T, c) - transform_points(interpolate_pose(T_a, T_b, float(s)), c), axis=1)))
         for s, T, c in zip(s_knots, Ts, held, strict=True))
     metrics = {"max_ik_error": ik_error[0], "max_pose_correction": correction,
-               **_repose_metrics(ctx, Q, Ts, np.asarray(a.contacts_object, dtype=float))}
+               **_repose_metrics(ctx, Q, Ts)}
     problems = [f"IK: {why}"] if why else []
     if metrics["max_surface_error"] > o.surface_tol:
         problems.append(f"a tip is {metrics['max_surface_error'] * 1e3:.3f} mm off the surface "
                         f"(> {o.surface_tol * 1e3:.2f} mm)")
     if metrics["max_slip"] > o.max_slip:
-        problems.append(f"a contact slips {metrics['max_slip'] * 1e3:.3f} mm (> {o.max_slip * 1e3:.2f} mm)")
+        problems.append(f"a tip slides {metrics['max_slip'] * 1e3:.3f} mm over the object "
+                        f"(> {o.max_slip * 1e3:.2f} mm)")
     if metrics["min_clearance"] < 0.0:
         problems.append(f"a non-tip sphere is {-metrics['min_clearance'] * 1e3:.3f} mm inside the object")
     if metrics["min_self_clearance"] < 0.0:
         problems.append(f"two fingers overlap by {-metrics['min_self_clearance'] * 1e3:.3f} mm")
     problems += _limit_problems(ctx, Q)
     return _timed(ctx, Q, Ts, ["repose"] * (len(Q) - 1), problems, metrics)
+
+
+def _rolling_tips(ctx: _Context, a: tuple, b: tuple):
+    """held_at(s, q, T_s) -> (m, 3): the tip centres, object frame, at a knot s of a reposing from
+    a = (q_a, T_a, tips_a) to b (joints, pose, tip centres in the object frame) whose joints q and pose
+    T_s turn each tip by θ(s) from a: tips_a + ρ θ(s) × n (rolling, `grasp_metrics.rolling_displacement`,
+    n between a's normal and the one interpolated towards b's) + s × the slide that OPT2 left between a
+    and b (spread evenly), so that the path's tips roll as its ends do."""
+    (q_a, T_a, tips_a), (q_b, T_b, tips_b) = a, b
+    hand, rho = ctx.hand, ctx.hand.tip_radius
+    R_a, R_b = tip_frames(hand, q_a, T_a)[1], tip_frames(hand, q_b, T_b)[1]
+    n_a, n_b = (contact_normals(np.asarray(ctx.obj.closest_points(t)[0], float), t) for t in (tips_a, tips_b))
+    left = (tips_b - tips_a) - rolling_displacement(R_a, R_b, n_a + n_b, rho)
+
+    def held_at(s: float, q: NDArray, T_s: NDArray) -> NDArray:
+        n_s = (1.0 - s) * n_a + s * n_b
+        n_s /= np.linalg.norm(n_s, axis=1, keepdims=True)
+        return tips_a + rolling_displacement(R_a, tip_frames(hand, q, T_s)[1], n_a + n_s, rho) + s * left
+
+    return held_at
 
 
 def _knot_poses(s_knots: NDArray, poses: dict[float, NDArray]) -> NDArray[np.float64]:
@@ -122,20 +155,27 @@ def _knot_poses(s_knots: NDArray, poses: dict[float, NDArray]) -> NDArray[np.flo
     return np.stack(out)
 
 
-def _repose_metrics(ctx: _Context, Q: NDArray, Ts: NDArray, contacts_a: NDArray) -> dict[str, float]:
-    """"max_surface_error" and "max_slip" (from contacts_a (m, 3), object frame) of the tips at the knots
-    Q (k, n), Ts (k, 4, 4) and the segments' midpoints; "min_clearance" (non-tip spheres),
+def _repose_metrics(ctx: _Context, Q: NDArray, Ts: NDArray) -> dict[str, float]:
+    """"max_surface_error" and "max_slip" (the tips' material sliding over the object, accumulated along
+    the path: `grasp_metrics.path_tip_slip`) of the tips at the knots Q (k, n), Ts (k, 4, 4) and the
+    segments' midpoints; "min_clearance" (non-tip spheres),
     "min_self_clearance" and "max_point_step" at the knots; m."""
     from regrasp_casadi.trajectory import _to_object
 
     mid_T = [interpolate_pose(T0, T1, 0.5) for T0, T1 in zip(Ts[:-1], Ts[1:], strict=True)]
-    Q_all = np.concatenate([Q, 0.5 * (Q[:-1] + Q[1:])])
-    T_all = np.concatenate([Ts, np.reshape(mid_T, (-1, 4, 4))])
+    k = len(Q)  # path order: knot 0, midpoint 0, knot 1, ..., knot k-1
+    Q_all = np.empty((2 * k - 1, Q.shape[1]))
+    Q_all[0::2], Q_all[1::2] = Q, 0.5 * (Q[:-1] + Q[1:])
+    T_all = np.empty((2 * k - 1, 4, 4))
+    T_all[0::2], T_all[1::2] = Ts, np.reshape(mid_T, (-1, 4, 4))
     tips = np.array([ctx.tip_index[f] for f in ctx.hand.fingers])
     p_object = _to_object(T_all, ctx.centers(Q_all)[:, tips])
     closest, sd = ctx.obj.closest_points(p_object.reshape(-1, 3))
     surface = np.abs(np.reshape(sd, (len(Q_all), -1)) - ctx.radii[tips][None])
-    slip = np.linalg.norm(np.reshape(closest, (len(Q_all), -1, 3)) - contacts_a[None], axis=2)
+    closest = np.reshape(closest, (len(Q_all), -1, 3))
+    normals = np.stack([contact_normals(c, p) for c, p in zip(closest, p_object, strict=True)])
+    R_object_tips = np.stack([tip_frames(ctx.hand, q, T)[1] for q, T in zip(Q_all, T_all, strict=True)])
+    slip = path_tip_slip(p_object, R_object_tips, normals, ctx.hand.tip_radius)
     others = np.flatnonzero(~ctx.is_tip)
     clear = ctx.clearance(Q, Ts, others) if others.size else np.full((1, 1), math.inf)
     return {"max_surface_error": float(np.max(surface)), "max_slip": float(np.max(slip)),

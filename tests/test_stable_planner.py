@@ -27,7 +27,7 @@ from regrasp_casadi.verify import verify
 
 ROOT = Path(__file__).resolve().parents[1]
 BOX_SHIFT = ROOT / "problems" / "box_shift.yaml"
-BEFORE = ROOT / "tests" / "data" / "paper_planner_fingerprints.json"  # the paper's planner, main 5964f02
+BEFORE = ROOT / "tests" / "data" / "paper_planner_fingerprints.json"  # the paper's planner, rolling tips
 
 
 @pytest.fixture(scope="module")
@@ -207,9 +207,10 @@ def test_verify_rejects_an_uncertified_gait_with_its_own_mu(problem, plans):
 
 def test_the_paper_planner_is_unchanged(plans):
     # stability "none" plans as recorded (benchmarks/regression.py --no-ycb --stability none, re-recorded at
-    # the merge of issues 12-16, whose OPT2 and final moves changed the plans on purpose; the first record,
-    # on main 5964f02, showed the certificates' code leaves "none" unchanged; the benchmark compares every
-    # shipped problem and both methods)
+    # the merge of issues 12-16, whose OPT2 and final moves changed the plans on purpose, and again when the
+    # fingertips roll (OPT2's rolling relaxed rigidity, the re-gaits after the final moves); the first
+    # record, on main 5964f02, showed the certificates' code leaves "none" unchanged; the benchmark
+    # compares every shipped problem and both methods)
     paper, _ = plans
     before = {(r["problem"], r["method"]): r for r in json.loads(BEFORE.read_text())["records"]}
     ref = before[("box_shift", "svd")]

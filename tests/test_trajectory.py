@@ -6,19 +6,23 @@ from __future__ import annotations
 
 import json
 import logging
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 
 from regrasp_casadi.cli import main
 from regrasp_casadi.errors import PlanFormatError
+from regrasp_casadi.grasp_metrics import tip_frames, tip_slip
 from regrasp_casadi.motion import StepPath, interpolate_knots, sample_knots, time_stamps
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.trajectory import TrajectoryOptions, plan_trajectories
 from regrasp_casadi.transforms import interpolate_pose, inv_T, make_T, rot_axis_angle, transform_points
+from regrasp_casadi.verify import verify
 
 REPO = Path(__file__).resolve().parents[1]
 GOLDEN_V1 = Path(__file__).resolve().parent / "data" / "plan_v1_box_rotate.json"
@@ -188,11 +192,47 @@ def test_a_finger_through_another_finger_is_flagged(box, gait_steps):
 
 
 # ------------------------------------------------------------------------------------------ reposing
-def test_reposing_path_keeps_every_tip_on_the_surface_and_its_contact(box, repose_steps):
+def test_verify_fails_a_reposing_whose_tips_turn_over_their_contacts(box, repose_steps):
+    """The fixture's reposing keeps every contact at its point of the box (the paper's model, which
+    verify's contact-travel check passed) while the tips turn with the fingers: each tip's material
+    slides over the box by the closed form (ρ θ × n against a still centre). verify's slip check, at
+    the step and along its motion, reports every finger that slides more than 1 mm, by that amount."""
     hand, obj, half, *_ = box
     a, b = repose_steps
     path = plan_trajectories([a, b], hand, obj, NO_SELF)[1]
-    assert path.ok, path.detail
+    (p_a, R_a), (p_b, R_b) = (tip_frames(hand, s.q, s.T_palm_object) for s in (a, b))
+    normals = np.zeros_like(p_a)
+    axis = np.argmax(np.abs(p_a) - half, axis=1)
+    normals[np.arange(len(p_a)), axis] = np.sign(p_a[np.arange(len(p_a)), axis])
+    theta = Rotation.from_matrix(R_b @ np.transpose(R_a, (0, 2, 1))).as_rotvec()
+    rolled = hand.tip_radius * np.cross(theta, normals)  # where rolling would have put the centres
+    moved = (p_b - p_a) - rolled
+    closed_form = np.linalg.norm(moved - np.sum(moved * normals, axis=1, keepdims=True) * normals, axis=1)
+    assert np.max(np.linalg.norm(p_b - p_a, axis=1)) < 2e-4  # the centres (and contacts) stay
+    report = verify(_plan([a, replace(b, path=path)]), hand, obj, self_clearance=None)
+    found = {v.who: v.amount for v in report.violations if v.check == "slip"}
+    expected = {f: s for f, s in zip(hand.fingers, closed_form, strict=True) if s > 1e-3}
+    assert expected and found.keys() == expected.keys()
+    for f, s in expected.items():
+        assert found[f] == pytest.approx(s, rel=0.03)
+    assert {v.who for v in report.violations if v.check == "motion_slip"} == set(expected)
+
+
+def test_reposing_path_keeps_every_tip_on_the_surface_and_its_contact(box, repose_steps):
+    """The fixture's ends hold the tips at the same points of the box while it turns 14.6°: each tip
+    turns over its contact, sliding its material over the box (`grasp_metrics.tip_slip`, closed-form
+    normals), which the path reports as its only problem, with the slide of its ends."""
+    hand, obj, half, *_ = box
+    a, b = repose_steps
+    path = plan_trajectories([a, b], hand, obj, NO_SELF)[1]
+    (p_a, R_a), (p_b, R_b) = (tip_frames(hand, s.q, s.T_palm_object) for s in (a, b))
+    normals = np.zeros_like(p_a)
+    axis = np.argmax(np.abs(p_a) - half, axis=1)
+    normals[np.arange(len(p_a)), axis] = np.sign(p_a[np.arange(len(p_a)), axis])
+    slide = float(np.max(tip_slip(p_a, R_a, p_b, R_b, 2 * normals, hand.tip_radius)))
+    assert slide > 1e-3
+    assert path.detail == f"a tip slides {path.metrics['max_slip'] * 1e3:.3f} mm over the object (> 1.00 mm)"
+    assert path.metrics["max_slip"] == pytest.approx(slide, abs=1e-4)  # the path's tips roll: no more
     assert np.array_equal(path.q[0], a.q) and np.array_equal(path.q[-1], b.q)
     assert np.array_equal(path.T_palm_object[0], a.T_palm_object)
     assert np.array_equal(path.T_palm_object[-1], b.T_palm_object)
