@@ -296,7 +296,12 @@ class InGraspNLP:
 
     Relaxed rigidity (Sundaralingam & Hermans, 2017): with c_r the tip-sphere centres and
     R_{O,r} the tip orientations in the object frame at the start,
-    ``E_pos = Σ_r ||FK_r(Θ) − (R c_r + t)||²`` (mm²) and ``E_or = Σ_r ||R_r(Θ) − R R_{O,r}||_F²``.
+    ``E_pos = Σ_r ||FK_r(Θ) − (R c_r' + t)||²`` (mm²) and ``E_or = Σ_r ||R_r(Θ) − R R_{O,r}||_F²``.
+    The paper's c_r' = c_r holds each tip centre at its start point of the object; with ``rolling`` (the
+    default, not in the paper) c_r' = c_r + ρ θ_r × n_r, where the tip rolls to without slipping: θ_r the
+    rotation vector of (Rᵀ R_r(Θ)) R_{O,r}ᵀ, n_r the outward normal at the start contact, ρ the tip radius
+    (`terms.rolling_offset`). A tip held at c_r while it turns slides its material over the object by
+    ρ |θ_r|; the move is judged by that slide (`grasp_metrics.tip_slip` ≤ ``max_slip``).
 
     * ``method="svd"`` (the paper's SVD form, and the final in-grasp move):
       ``E_des = ||t − t*||² + (ℓ²/2) ||R − R*||_F²`` (mm², ℓ the object's radius in mm), with the target
