@@ -192,6 +192,16 @@ def test_a_finger_through_another_finger_is_flagged(box, gait_steps):
 
 
 # ------------------------------------------------------------------------------------------ reposing
+def _box_normals(p_object: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Outward normals (m, 3) of the origin-centred box at tip centres (m, 3) outside a face, closed form:
+    the axis of the largest excess over the half extents."""
+    normals = np.zeros_like(p_object)
+    rows = np.arange(len(p_object))
+    axis = np.argmax(np.abs(p_object) - half, axis=1)
+    normals[rows, axis] = np.sign(p_object[rows, axis])
+    return normals
+
+
 def test_verify_fails_a_reposing_whose_tips_turn_over_their_contacts(box, repose_steps):
     """The fixture's reposing keeps every contact at its point of the box (the paper's model, which
     verify's contact-travel check passed) while the tips turn with the fingers: each tip's material
@@ -201,9 +211,7 @@ def test_verify_fails_a_reposing_whose_tips_turn_over_their_contacts(box, repose
     a, b = repose_steps
     path = plan_trajectories([a, b], hand, obj, NO_SELF)[1]
     (p_a, R_a), (p_b, R_b) = (tip_frames(hand, s.q, s.T_palm_object) for s in (a, b))
-    normals = np.zeros_like(p_a)
-    axis = np.argmax(np.abs(p_a) - half, axis=1)
-    normals[np.arange(len(p_a)), axis] = np.sign(p_a[np.arange(len(p_a)), axis])
+    normals = _box_normals(p_a, half)
     theta = Rotation.from_matrix(R_b @ np.transpose(R_a, (0, 2, 1))).as_rotvec()
     rolled = hand.tip_radius * np.cross(theta, normals)  # where rolling would have put the centres
     moved = (p_b - p_a) - rolled
@@ -226,9 +234,7 @@ def test_reposing_path_keeps_every_tip_on_the_surface_and_its_contact(box, repos
     a, b = repose_steps
     path = plan_trajectories([a, b], hand, obj, NO_SELF)[1]
     (p_a, R_a), (p_b, R_b) = (tip_frames(hand, s.q, s.T_palm_object) for s in (a, b))
-    normals = np.zeros_like(p_a)
-    axis = np.argmax(np.abs(p_a) - half, axis=1)
-    normals[np.arange(len(p_a)), axis] = np.sign(p_a[np.arange(len(p_a)), axis])
+    normals = _box_normals(p_a, half)
     slide = float(np.max(tip_slip(p_a, R_a, p_b, R_b, 2 * normals, hand.tip_radius)))
     assert slide > 1e-3
     assert path.detail == f"a tip slides {path.metrics['max_slip'] * 1e3:.3f} mm over the object (> 1.00 mm)"
