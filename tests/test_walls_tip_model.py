@@ -26,7 +26,7 @@ def _tip_model_error(obj: ObjectModel, n: int = 400) -> np.ndarray:
     """|smooth local distance − exact distance| (m) at `n` tip-sphere centres one Allegro tip radius off
     the surface along its normal (those where the tip ball fits: its exact distance is the radius)."""
     rho = Hand.allegro_right().tip_radius
-    pts, nrm = obj.mesh.sample(n, return_index=True)
+    pts, nrm = obj.mesh.sample(n, return_index=True, seed=7)  # trimesh's own generator: seeded here
     nrm = obj.mesh.face_normals[nrm]
     centres = pts + rho * nrm
     exact = -trimesh.proximity.signed_distance(obj.mesh, centres)  # trimesh: positive inside
@@ -45,8 +45,9 @@ def _tip_model_error(obj: ObjectModel, n: int = 400) -> np.ndarray:
 
 @pytest.mark.parametrize("kind", ["cup", "mug"])
 def test_tip_model_follows_the_exact_distance_on_cup_and_mug(kind):
-    """Within 1 mm everywhere (the face-plane pieces alone: p95 2.8 mm, max 5–10 mm)."""
-    np.random.seed(7)
+    """Within 1 mm at 400 seeded surface samples (the face-plane pieces alone: p95 2.8 mm, max 5–10 mm).
+    Measured over eight seeds: the largest 0.67–0.68 mm (cup), 0.68–0.84 mm (mug); an unseeded run found
+    1.002 mm on the mug (trimesh's sampling does not read numpy's global seed)."""
     err = _tip_model_error(getattr(ObjectModel, kind)())
     assert len(err) > 300
     assert np.max(err) <= 1e-3
@@ -55,7 +56,6 @@ def test_tip_model_follows_the_exact_distance_on_cup_and_mug(kind):
 def test_tip_model_on_the_bowl_is_within_its_chords():
     """The bowl's pieces cut the inside of the sphere by chords (≤ 2 × the wall tolerance): the model is
     within that, and within 1 mm at the median (the face-plane pieces alone: median 1.4 mm)."""
-    np.random.seed(7)
     err = _tip_model_error(ObjectModel.bowl())
     assert np.max(err) <= 2 * WALL_TOLERANCE
     assert np.median(err) <= 1e-3
