@@ -118,9 +118,11 @@ def path_tip_slip(p_object_tips: ArrayLike, R_object_tips: ArrayLike, normals_ob
     R = np.asarray(R_object_tips, dtype=float)
     n = np.asarray(normals_object, dtype=float)
     k, m = p.shape[:2]
-    total = np.zeros((k, m, 3))
-    for i in range(1, k):
-        total[i] = total[i - 1] + _slide_vectors(p[i - 1], R[i - 1], p[i], R[i], n[i - 1] + n[i], radius)
+    if k < 2:
+        return np.zeros((k, m))
+    steps = _slide_vectors(p[:-1].reshape(-1, 3), R[:-1].reshape(-1, 3, 3), p[1:].reshape(-1, 3),
+                           R[1:].reshape(-1, 3, 3), (n[:-1] + n[1:]).reshape(-1, 3), radius)
+    total = np.concatenate([np.zeros((1, m, 3)), np.cumsum(steps.reshape(k - 1, m, 3), axis=0)])
     return np.linalg.norm(total, axis=2)
 
 

@@ -251,6 +251,8 @@ class MotionGeometry:
     """(N, m) exact distance of each tip centre − tip radius, m."""
     p_object_contact: NDArray[np.float64]
     """(N, m) exact closest points of the tip centres, object frame, m."""
+    p_object_tip: NDArray[np.float64]
+    """(N, m, 3) the tip centres, object frame, m."""
     self_min: dict[int, tuple[NDArray[np.float64], NDArray[np.int64]]]
     """step -> (smallest surface distance (P,) of every self-collision pair over the step's samples, m;
     the sample where it is), exact below the threshold + `NEAR` (P = 0 when not checked)."""
@@ -288,7 +290,7 @@ def motion_geometry(ctx: VerifyContext) -> MotionGeometry:
     per_step = _self_distances(hand, C, pairs, tol.self_clearance or 0.0, list(judged.values()),
                                samples.max_point_step)
     self_min = dict(zip(judged, per_step, strict=True))
-    geom = MotionGeometry(samples, clearance, tip_gap, contact, self_min)
+    geom = MotionGeometry(samples, clearance, tip_gap, contact, p_object[:, tip_idx], self_min)
     ctx.__dict__["_motion_geometry"] = geom
     ctx.metrics.update({"motion_samples": int(N), "motion_max_point_step": samples.max_point_step,
                         "motion_seconds": time.perf_counter() - t0})
@@ -553,15 +555,14 @@ def _motion_tip_slip(ctx: VerifyContext, k: int, step: PlanStep, rows: NDArray[n
 
     geom, hand = motion_geometry(ctx), ctx.hand
     q, T = geom.samples.q[rows], geom.samples.T_palm_object[rows]
-    p_palm = np.stack([np.asarray(hand.tip_positions(qi), float).reshape(-1, 3) for qi in q])
-    p_object = np.einsum("kij,ksi->ksj", T[:, :3, :3], p_palm - T[:, None, :3, 3])
+    p_object = geom.p_object_tip[rows]
     normals = np.stack([contact_normals(c, p) for c, p in zip(geom.p_object_contact[rows], p_object,
                                                                strict=True)])
     R = np.broadcast_to(np.eye(3), (len(rows), len(ctx.fingers), 3, 3))
-    if step.kind in ("repose", "final"):
-        rot = [hand.link_rotation_function(hand.tip_links[f]) for f in ctx.fingers]
-        R = np.stack([[Ti[:3, :3].T @ np.asarray(r(qi), float) for r in rot]
-                      for qi, Ti in zip(q, T, strict=True)])
+    if step.kind in ("repose", "final"):  # R_palm_tip of every sample, one mapped call per finger
+        R_palm = np.stack([np.asarray(hand.link_rotation_function(hand.tip_links[f]).map(len(q))(q.T), float)
+                           .reshape(3, len(q), 3).transpose(1, 0, 2) for f in ctx.fingers], axis=1)
+        R = np.einsum("kji,kfjl->kfil", T[:, :3, :3], R_palm)
     return path_tip_slip(p_object, R, normals, hand.tip_radius)
 
 
