@@ -5,11 +5,11 @@ calls its gait paths and `slide_trajectory.slide_path` for the other kinds; the 
 `motion.StepPath` whose segments all have the phase "repose".
 
 Knots, s ∈ [0, 1]: the object pose T(s) is interpolated from step A's to step B's (translation linear,
-rotation geodesic: `transforms.interpolate_pose`); the tip centres are held in the object frame
-(interpolated linearly from A's to B's, which differ by the tips' rolling and OPT2's slip) and mapped
-by T(s); the joints come
-from the IK of `trajectory` for all fingers (damped least squares within the joint limits, warm started
-from the neighbouring knot, pulled towards the joint-space interpolation of A and B).
+rotation geodesic: `transforms.interpolate_pose`); the tip centres, object frame, go where the tips
+roll to (`_rolling_tips`: first on the chord from A's to B's, then `ROLL_PASSES` more IK passes with
+the targets moved to the roll of the tips as the knot's joints turn them) and are mapped by T(s); the
+joints come from the IK of `trajectory` for all fingers (damped least squares within the joint limits,
+warm started from the neighbouring knot, pulled towards the joint-space interpolation of A and B).
 
 **The object follows the hand.** Where that IK leaves a tip more than `FOLLOW_TOL` from its target (a
 finger held at two joint limits keeps only two free joints and cannot follow an arbitrary pose path:
