@@ -1,10 +1,12 @@
 """Measures of how a grasp changed, one definition each, shared by the planner, OPT2's acceptance and
-`verify` (numpy only: no smooth-distance, NLP, planner or CasADi code, so `verify` and `plan` may use it).
+`verify` (numpy only: no smooth-distance, NLP, planner or CasADi code of its own, so `verify` and `plan`
+may use it; `tip_frames` reads a `Hand`'s forward kinematics).
 
-* contact slip: how far each finger's *contact point on the object* moved, object frame, m. The contact
-  is the exact closest mesh point of the fingertip centre (`ObjectModel.closest_points`), not the centre
-  itself: a tip that rolls over an edge or around a curved surface moves its centre more (convex) or less
-  (concave) than its contact, and only the contact's motion on the object is slip.
+* contact travel (`contact_slip`, `slip_between`): how far each finger's *contact point on the object*
+  moved, object frame, m. The contact is the exact closest mesh point of the fingertip centre
+  (`ObjectModel.closest_points`). This is not the tip's slip: a rolling tip moves its contact without
+  sliding, and a tip turning in place over its contact slides without moving it. The planner, OPT2 and
+  verify judge the slip (`tip_slip`, below); until 2026-12-02 they judged this travel.
 * tip slip (`tip_slip`): how far the fingertip's *material* slides over the object, m. A spherical tip
   of radius ρ that turns by θ relative to the object (rotation vector, object frame) while pressing at
   outward normal n rolls without slipping only when its centre moves by ρ θ × n; the slip is the rest,

@@ -460,8 +460,7 @@ class InGraspNLP:
         q = np.asarray(q, float)
         T0 = np.asarray(T_palm_object, float)
         c_tips = np.asarray(p_object_tips, float).reshape(self._m, 3)
-        fk = self.hand.fk(q)  # the grasp's data, the same for every try below
-        R_tips = np.hstack([T0[:3, :3].T @ fk[self.hand.tip_links[f]][:3, :3] for f in self.hand.fingers])
+        R_tips = np.hstack(list(tip_frames(self.hand, q, T0)[1]))  # [R_1 | … | R_m], the same for every try
         contacts = object_contacts(self.obj, c_tips)
         grasp = {"R0_palm_object": T0[:3, :3], "t0_palm_object": T0[:3, 3], "p_object_tips": c_tips.T,
                  "R_object_tips": R_tips, "n_object_tips": contact_normals(contacts, c_tips).T,
