@@ -163,6 +163,7 @@ def run_plan(plan, problem, conditions, opts_kw: dict) -> list[dict]:
         every = max(1, int(round(SERIES_DT / float(np.median(np.diff(s["t"]))))))
         out.append(dict(
             condition=cond, status=rep.status, max_mm=rep.max_deviation_mm, max_deg=rep.max_deviation_deg,
+            max_tip_drift_mm=rep.max_tip_drift_mm,
             final_mm=last.deviation_mm, final_deg=last.deviation_deg, wall_s=time.perf_counter() - t0,
             sim_s=rep.sim_time, drop_time=rep.drop_time, drop_step=drop_step(rep, plan, open_steps),
             detail=rep.detail, object_mass=rep.object_mass,
@@ -189,6 +190,7 @@ def run_steps(plan, problem, conditions, opts_kw: dict) -> list[dict]:
             out.append(dict(step=i, kind=step_class(plan, i, open_steps), finger=plan.steps[i].finger,
                             condition=cond, status=rep.status, settle_mm=rep.steps[0].deviation_mm,
                             mm=rep.steps[1].deviation_mm, deg=rep.steps[1].deviation_deg,
+                            tip_drift_mm=max(rep.steps[1].tip_drift_mm.values()),
                             grip_residual=rep.steps[1].grip_residual, margin=margins.get(i)))
     return out
 
@@ -214,14 +216,16 @@ def summary_table(records: list[dict]) -> str:
         if r["condition"] != "off":
             groups[(r["stability"], "gravity (3 orientations)")].append(r)
     lines = ["| stability | condition | cases | held | final within 5 mm / 5° | dropped | final mm median "
-             "(not dropped) | max mm median (not dropped) | wall s median / max |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "(not dropped) | max mm median (not dropped) | max tip drift mm median (not dropped) | wall s "
+             "median / max |", "|---|---|---|---|---|---|---|---|---|---|"]
     for (stab, cond), rs in sorted(groups.items()):
         kept = [r for r in rs if r["status"] != "dropped"]
         close = sum(r["status"] != "dropped" and r["final_mm"] <= 5 and r["final_deg"] <= 5 for r in rs)
         lines.append(f"| {stab} | {cond} | {len(rs)} | {_pct(sum(r['status'] == 'held' for r in rs), len(rs))} "
                      f"| {_pct(close, len(rs))} | {_pct(sum(r['status'] == 'dropped' for r in rs), len(rs))} "
-                     f"| {_median(kept, 'final_mm')} | {_median(kept, 'max_mm')} | {np.median([r['wall_s'] for r in rs]):.1f} / "
+                     f"| {_median(kept, 'final_mm')} | {_median(kept, 'max_mm')} | "
+                     f"{_median([r for r in kept if 'max_tip_drift_mm' in r], 'max_tip_drift_mm')} | "
+                     f"{np.median([r['wall_s'] for r in rs]):.1f} / "
                      f"{max(r['wall_s'] for r in rs):.1f} |")
     if refused:
         lines.append(f"\n{len(refused)} plans refused as invalid_input (initial grasp not certified), not counted.")

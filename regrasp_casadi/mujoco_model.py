@@ -172,6 +172,11 @@ class SimOptions:
     """Largest step-end position deviation (object centre of mass) for the plan to count as followed, m."""
     tol_rotation: float = 5.0
     """Largest step-end rotation deviation for the plan to count as followed, degrees."""
+    tol_tip_drift: float = 5e-3
+    """Largest step-end distance of a fingertip from where the plan has it on the object (tip centres in
+    the object frame, `StepRecord.tip_drift_mm`) for the plan to count as followed, m: an object held at
+    its planned pose by fingers that slipped elsewhere on it, or by a finger whose slide did not happen,
+    is not the plan executed."""
 
     def __post_init__(self) -> None:
         if self.integrator not in _INTEGRATORS:

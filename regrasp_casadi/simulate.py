@@ -26,7 +26,10 @@ Deviation = distance (mm) between the simulated and planned positions of the obj
 and the angle (degrees) between the simulated and planned orientations, both in the palm frame, at the
 end of every step. The object is **dropped** when a deviation exceeds `drop_distance` (2 cm) at any time,
 or fewer than `min_fingers` (2) fingers touch it at a step end; the plan is **followed** ("held") when it
-is not dropped and every step-end deviation is within `tol_position` / `tol_rotation` (5 mm / 5°).
+is not dropped, every step-end deviation is within `tol_position` / `tol_rotation` (5 mm / 5°), and
+every fingertip is within `tol_tip_drift` (5 mm) of where the plan has it on the object (tip centres in
+the object frame, `StepRecord.tip_drift_mm`): an object kept at its pose by fingers that slipped to other
+places on it, or whose slide did not happen, is not the plan executed.
 
 Cost: per physics step (`timestep`) only the joint targets are written and MuJoCo steps; the targets of
 the whole run are computed before it (`joint_commands`, every `CONTROL_DT`, one batch), the feedback
@@ -87,6 +90,10 @@ class StepRecord:
     """Wrench the planned holding contacts cannot balance ("balanced" grip LP, worst over the step's
     phases), N (torques counted at 5 cm); > 0 means the planned grasp cannot hold against gravity
     with `grip_force` pressing (e.g. three fingers on one face)."""
+    tip_drift_mm: dict[str, float] = field(default_factory=dict)
+    """finger -> distance between its simulated and planned tip centre in the OBJECT frame, mm: how far
+    the finger is from where the plan has it on the object (a contact the fingers slipped off, a slide
+    that did not happen), whatever the object's own deviation."""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict."""
@@ -109,6 +116,8 @@ class SimReport:
     """Largest step-end position deviation, mm."""
     max_deviation_deg: float
     """Largest step-end rotation deviation, degrees."""
+    max_tip_drift_mm: float
+    """Largest step-end tip drift (`StepRecord.tip_drift_mm`) of any finger, mm."""
     dropped: bool
     """Deviation above `drop_distance` at any time, or fewer than `min_fingers` touching at a step end."""
     drop_time: float | None
@@ -148,7 +157,7 @@ class SimReport:
             last = self.steps[-1]
             text = (f"simulate: {self.status}; max deviation {self.max_deviation_mm:.2f} mm / "
                     f"{self.max_deviation_deg:.2f} deg, final {last.deviation_mm:.2f} mm / "
-                    f"{last.deviation_deg:.2f} deg")
+                    f"{last.deviation_deg:.2f} deg, max tip drift {self.max_tip_drift_mm:.2f} mm")
         text += (f"; {len(self.steps) - 1} steps, {self.sim_time:.2f} s simulated in {self.wall_time:.2f} s"
                  f" ({g})")
         return text + (f" [{self.detail}]" if self.detail else "")
@@ -189,6 +198,12 @@ class _Probe:
         T[:3, 3] = data.xpos[self.sim.object_body]
         return self.T_palm_world @ T
 
+    def p_object_tip(self, data: mujoco.MjData) -> NDArray:
+        """(m, 3) the simulated tip-sphere centres in the simulated object's frame, m, ``fingers`` order."""
+        T = np.linalg.inv(self.T_palm_object(data)) @ self.T_palm_world
+        p_world = data.geom_xpos[[self.sim.tip_geom[f] for f in self.fingers]]
+        return p_world @ T[:3, :3].T + T[:3, 3]
+
     def deviation(self, data: mujoco.MjData, T_plan: NDArray, T_sim: NDArray | None = None
                   ) -> tuple[float, float]:
         """(position error mm of the centre of mass, rotation error degrees) against ``T_plan``; ``T_sim``
@@ -227,13 +242,15 @@ class _Probe:
 
 
 def _record(probe: _Probe, model, data, T_plan, *, step: int, kind: str, finger, residual: float,
-            recent: set[str]) -> StepRecord:
-    """The step-end record; `recent`: fingers that touched the object within the touch window."""
+            recent: set[str], p_object_tip_plan: NDArray) -> StepRecord:
+    """The step-end record; `recent`: fingers that touched the object within the touch window;
+    `p_object_tip_plan` (m, 3) the step's planned tip centres, object frame, m."""
     dev_mm, dev_deg = probe.deviation(data, T_plan)
     touching, tip_force, other = probe.contacts(model, data)
     touching = tuple(f for f in probe.fingers if f in recent or f in touching)
+    drift = np.linalg.norm(probe.p_object_tip(data) - p_object_tip_plan, axis=1) * 1e3
     return StepRecord(step, kind, finger, float(data.time), dev_mm, dev_deg, touching, tip_force, other,
-                      float(residual))
+                      float(residual), {f: float(d) for f, d in zip(probe.fingers, drift, strict=True)})
 
 
 def _place(sim: SimModel, data: mujoco.MjData, q0: NDArray, T_palm_object: NDArray,
@@ -347,6 +364,8 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     window = max(1, int(round(opts.touch_window / opts.timestep)))
     watch = {e - j for e in [*step_at, len(Q)] for j in range(1, window)}  # sim steps just before an end
     records, drop_time, recent = [], None, set()
+    tips_plan = [(np.asarray(hand.tip_positions(st.q), dtype=float) - st.T_palm_object[:3, 3])
+                 @ st.T_palm_object[:3, :3] for st in plan.steps]  # (m, 3) per step, object frame, m
     direct = np.array_equal(sim.actuator, np.arange(model.nu))  # actuator ids in joint order: no gather
     for k in range(len(Q)):
         if k <= n_settle:
@@ -371,7 +390,8 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
             i = step_at[k + 1]
             st = plan.steps[i]
             records.append(_record(probe, model, data, st.T_palm_object, step=i, kind=st.kind,
-                                   finger=st.finger, residual=residual[i], recent=recent))
+                                   finger=st.finger, residual=residual[i], recent=recent,
+                                   p_object_tip_plan=tips_plan[i]))
             recent = set()
         if (k + 1) % every == 0 or k + 1 == len(Q):
             dev_mm = _sample(series, probe, data, T_ref[k])
@@ -379,7 +399,8 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
                 drop_time = float(data.time)
     model.opt.gravity[:] = gravity
     records.append(_record(probe, model, data, plan.steps[-1].T_palm_object, step=len(plan.steps),
-                           kind="hold", finger=None, residual=residual[-1], recent=recent))
+                           kind="hold", finger=None, residual=residual[-1], recent=recent,
+                           p_object_tip_plan=tips_plan[-1]))
     return records, series, drop_time
 
 
@@ -398,6 +419,11 @@ def _verdict(records: list[StepRecord], drop_time: float | None, opts: SimOption
         return ("deviating", f"step {worst.step}: {worst.deviation_mm:.2f} mm, step {worst_r.step}: "
                 f"{worst_r.deviation_deg:.2f} deg (tolerance {opts.tol_position * 1e3:g} mm / "
                 f"{opts.tol_rotation:g} deg)", False, None)
+    drift = max(records, key=lambda r: max(r.tip_drift_mm.values(), default=0.0))
+    finger, mm = max(drift.tip_drift_mm.items(), key=lambda kv: kv[1], default=(None, 0.0))
+    if mm > opts.tol_tip_drift * 1e3:
+        return ("deviating", f"step {drift.step}: the {finger} tip {mm:.2f} mm from its planned place on the "
+                f"object (tolerance {opts.tol_tip_drift * 1e3:g} mm)", False, None)
     return "held", "", False, None
 
 
@@ -430,6 +456,7 @@ def simulate(plan: Plan, hand=None, obj=None, options: SimOptions | None = None)
         status=status, detail=detail, steps=tuple(records),
         max_deviation_mm=max(r.deviation_mm for r in records),
         max_deviation_deg=max(r.deviation_deg for r in records),
+        max_tip_drift_mm=max(max(r.tip_drift_mm.values(), default=0.0) for r in records),
         dropped=dropped, drop_time=drop_t, sim_time=float(len(series["t"]) and series["t"][-1]),
         wall_time=time.perf_counter() - t0, object_mass=sim.object_mass, options=opts.to_dict(),
         series={k: np.asarray(v) for k, v in series.items()},
