@@ -304,6 +304,9 @@ def _args(argv):
     ap.add_argument("--drag-only", action="store_true",
                     help="certify slides with their full kinetic drag only, not also without it (before "
                          "2026-12-02; HoldingOptions.slide_drag_range=False)")
+    ap.add_argument("--no-slides", action="store_true",
+                    help="the certified planner without slide steps (HoldingOptions.slide=False): a finger "
+                         "whose lift is not certified waits")
     ap.add_argument("--max-normal-force", type=float, default=None,
                     help="the gravity certificate's bound on each normal force, N (HoldingOptions)")
     ap.add_argument("--out", type=pathlib.Path, default=None, help="JSON file for the records")
@@ -330,7 +333,8 @@ def _job(job: tuple) -> tuple[list[dict], list[dict], list[dict]]:
                                      ("max_normal_force", args.max_normal_force),
                                      ("min_normal_force", args.min_normal_force),
                                      ("min_load_share", args.min_load_share),
-                                     ("slide_drag_range", False if args.drag_only else None)) if v is not None}
+                                     ("slide_drag_range", False if args.drag_only else None),
+                                     ("slide", False if args.no_slides else None)) if v is not None}
         plan, verified, plan_s = make_plan(problem, method, kind, args.gait_order,
                                            condition_gravity(conditions[0], problem), mass, holding)
         head = dict(problem=path.stem, method=method, stability=stability, plan_status=plan.status,
