@@ -100,7 +100,12 @@ class HoldingOptions:
     slide: bool = True
     """A finger whose lift is not certified may slide along the surface instead (steps of kind
     "slide"; in their certificate the finger pushes along its normal and drags the object with kinetic
-    friction μ along its motion, `stability.sliding_normal`)."""
+    friction μ along its motion, `stability.sliding_normal`). Slides are what lets the lone opposing
+    thumb move, and they are hard to execute with position-controlled fingers. Measured in MuJoCo
+    (`simulate`, benchmarks/README.md "tip drift"): a sliding tip stays 1.5–1.8 mm behind a 2 mm
+    slide step, held by its own static friction against the soft servos. The shipped problems'
+    gravity-support plans with slides converge on 6 of 10 and are held on 0 of 10; without slides
+    (False) they converge on 1 of 10 and are held on 5 of 10."""
     kinetic_mu: float = MU
     """Kinetic friction coefficient of a sliding finger: its drag on the object, μ_k per newton of normal
     force along its motion (`stability.sliding_normal`). Not lowered with `mu`: more drag is the safe side."""
