@@ -26,6 +26,7 @@ def problem():
     return RegraspProblem.load(CUP_PAIR)
 
 
+@pytest.mark.slow  # 27 s on a 2-core VM: in the slow run, so the default run stays within 10 minutes
 def test_paper_planner_converges_on_the_cup_pair(problem):
     """Before the fingertips' wall model and the gaits' polish: "solver_failure", the middle finger held
     57 mm and the ring 76 mm from their goals. Now converged and verified, and every final contact is

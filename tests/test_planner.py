@@ -108,12 +108,12 @@ def _count_nlpsol(monkeypatch) -> list[str]:
 def test_no_rebuild_inside_a_plan(monkeypatch):
     fresh = RegraspProblem.load(BOX_PROBLEM)  # a new hand and object: nothing of theirs is cached yet
     built = _count_nlpsol(monkeypatch)
-    first = plan_regrasp(fresh.grasp0, fresh.grasp_goal, method="svd")
+    first = plan_regrasp(fresh.grasp0, fresh.grasp_goal, method="svd", max_iters=4)  # a short plan
     # one OPT1 per finger of the gait and one OPT2 (the svd method reposes with the pose NLP)
     assert len(built) == len(set(first.options["gait_used"])) + 1, built
     assert first.timing["build"] > 0.0
     n_first = len(built)
-    second = plan_regrasp(fresh.grasp0, fresh.grasp_goal, method="svd")
+    second = plan_regrasp(fresh.grasp0, fresh.grasp_goal, method="svd", max_iters=4)
     assert len(second.steps) > 5
     assert len(built) == n_first, f"the second plan built {built[n_first:]}"
     assert second.timing["build"] == 0.0
