@@ -238,11 +238,14 @@ def step_table(records: list[dict]) -> str:
     for r in records:
         groups[(r["stability"], r["kind"], r["condition"])].append(r)
     lines = ["| stability | step kind | condition | steps | held | dropped | step-end mm median | settle mm "
-             "median |", "|---|---|---|---|---|---|---|---|"]
+             "median | step-end tip drift mm median / p90 |", "|---|---|---|---|---|---|---|---|---|"]
     for (stab, kind, cond), rs in sorted(groups.items()):
+        drift = [r["tip_drift_mm"] for r in rs if "tip_drift_mm" in r]
+        drift_text = f"{np.median(drift):.2f} / {np.percentile(drift, 90):.2f}" if drift else "–"
         lines.append(f"| {stab} | {kind} | {cond} | {len(rs)} | {_pct(sum(r['status'] == 'held' for r in rs), len(rs))}"
                      f" | {_pct(sum(r['status'] == 'dropped' for r in rs), len(rs))} | "
-                     f"{np.median([r['mm'] for r in rs]):.2f} | {np.median([r['settle_mm'] for r in rs]):.2f} |")
+                     f"{np.median([r['mm'] for r in rs]):.2f} | {np.median([r['settle_mm'] for r in rs]):.2f} | "
+                     f"{drift_text} |")
     return "\n".join(lines)
 
 
