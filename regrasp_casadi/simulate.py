@@ -52,7 +52,7 @@ from regrasp_casadi.mujoco_model import SimModel, SimOptions, build_model
 from regrasp_casadi.sim_control import CONTROL_DT, joint_commands, plan_motion, step_durations, step_end_times
 from regrasp_casadi.sim_feedback import ObjectPoseFeedback
 from regrasp_casadi.sim_grip_feedback import GripForceFeedback
-from regrasp_casadi.transforms import rotation_angle
+from regrasp_casadi.transforms import inv_T, rotation_angle, transform_points
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.plan import Plan
@@ -200,9 +200,8 @@ class _Probe:
 
     def p_object_tip(self, data: mujoco.MjData) -> NDArray:
         """(m, 3) the simulated tip-sphere centres in the simulated object's frame, m, ``fingers`` order."""
-        T = np.linalg.inv(self.T_palm_object(data)) @ self.T_palm_world
-        p_world = data.geom_xpos[[self.sim.tip_geom[f] for f in self.fingers]]
-        return p_world @ T[:3, :3].T + T[:3, 3]
+        T_object_world = inv_T(self.T_palm_object(data)) @ self.T_palm_world
+        return transform_points(T_object_world, data.geom_xpos[[self.sim.tip_geom[f] for f in self.fingers]])
 
     def deviation(self, data: mujoco.MjData, T_plan: NDArray, T_sim: NDArray | None = None
                   ) -> tuple[float, float]:
@@ -364,8 +363,8 @@ def _run(sim: SimModel, plan: Plan, hand, opts: SimOptions):
     window = max(1, int(round(opts.touch_window / opts.timestep)))
     watch = {e - j for e in [*step_at, len(Q)] for j in range(1, window)}  # sim steps just before an end
     records, drop_time, recent = [], None, set()
-    tips_plan = [(np.asarray(hand.tip_positions(st.q), dtype=float) - st.T_palm_object[:3, 3])
-                 @ st.T_palm_object[:3, :3] for st in plan.steps]  # (m, 3) per step, object frame, m
+    tips_plan = [transform_points(inv_T(st.T_palm_object), np.asarray(hand.tip_positions(st.q), dtype=float))
+                 for st in plan.steps]  # (m, 3) per step, object frame, m
     direct = np.array_equal(sim.actuator, np.arange(model.nu))  # actuator ids in joint order: no gather
     for k in range(len(Q)):
         if k <= n_settle:
