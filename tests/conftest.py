@@ -10,6 +10,7 @@ import pytest
 os.environ["REGRASP_COMPILE"] = "0"  # NLPs interpreted (no compiler runs) unless a test asks otherwise
 
 REFERENCE_DIR = Path(__file__).resolve().parents[2] / "shared" / "reference"
+SHIPPED_PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 
 
 @pytest.fixture(scope="session")
@@ -54,3 +55,25 @@ def banana_small(tmp_path_factory):
     obj = ObjectModel.banana(rings=10, sections=8)
     mp.undo()
     return obj
+
+
+@pytest.fixture(scope="session")
+def shipped_plan():
+    """plan_of(stem, method="svd", **options) -> (problem, plan): the shipped problem
+    ``problems/<stem>.yaml`` (a `RegraspProblem`) and its `plan_regrasp` plan, planned once per session for
+    every test that asks for the same stem, method and options. Sharing is sound: one process gives the
+    same plan for the same input (tests/test_planner.py::test_same_input_same_plan) and a `Plan` is
+    frozen. Saves the default run a plan of 15-25 s per repeat."""
+    from regrasp_casadi.planner import plan_regrasp
+    from regrasp_casadi.problem import RegraspProblem
+
+    cache: dict = {}
+
+    def plan_of(stem: str, method: str = "svd", **options):
+        key = (stem, method, tuple(sorted(options.items())))
+        if key not in cache:
+            problem = RegraspProblem.load(SHIPPED_PROBLEMS / f"{stem}.yaml")
+            cache[key] = (problem, plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, **options))
+        return cache[key]
+
+    return plan_of

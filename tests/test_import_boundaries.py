@@ -73,18 +73,11 @@ def test_exact_distances_of_a_shipped_problem_load_no_smooth_side():
 
 
 @pytest.fixture(scope="module")
-def box_shift_plan(tmp_path_factory) -> Path:
-    """A plan of problems/box_shift.yaml, planned in its own interpreter and saved as JSON."""
+def box_shift_plan(tmp_path_factory, shipped_plan) -> Path:
+    """The default plan of problems/box_shift.yaml (the session's, `conftest.shipped_plan`), saved as JSON
+    for a fresh interpreter to load."""
     path = tmp_path_factory.mktemp("plan") / "box_shift.json"
-    _run(f"""
-        from regrasp_casadi.planner import plan_regrasp
-        from regrasp_casadi.problem import RegraspProblem
-
-        problem = RegraspProblem.load("problems/box_shift.yaml")
-        plan = plan_regrasp(problem.grasp0, problem.grasp_goal)
-        plan.save({str(path)!r})
-        print(plan.status)
-    """)
+    shipped_plan("box_shift", "svd")[1].save(path)
     return path
 
 

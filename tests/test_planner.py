@@ -57,9 +57,8 @@ and every sd plan are in the slow run, so the default run stays within its 10 mi
 @pytest.mark.parametrize("method", ["svd", pytest.param("sd", marks=SD_SLOW)])
 @pytest.mark.parametrize("path", [pytest.param(p, marks=() if p.stem in DEFAULT_RUN else SD_SLOW)
                                   for p in PROBLEMS], ids=[p.stem for p in PROBLEMS])
-def test_shipped_problem_plans_hold_the_object_and_verify(path, method):
-    problem = RegraspProblem.load(path)
-    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method)
+def test_shipped_problem_plans_hold_the_object_and_verify(path, method, shipped_plan):
+    problem, plan = shipped_plan(path.stem, method)
     report = verify(plan, problem.hand, problem.obj)
     if (path.stem, method) in KNOWN_MOTION_FAILURES and report.violations and all(
             v.check.startswith("motion_") for v in report.violations):
