@@ -1,7 +1,8 @@
 """Can the hand let go of its thumb? Reachable holding sets without the thumb, certified or not.
 
-Every goal of the shipped problems and of the paper pairs moves the thumb 3-8 cm while it alone
-opposes index, middle and ring (the certified planner's stalls, issue 14). The thumb can move only by
+Every goal of the shipped problems and of the paper pairs moves all four contacts (at least 3 cm on
+average), the thumb's too, while the thumb alone opposes index, middle and ring; the force-closure
+planner stalls on nearly all of them (issue 14; benchmarks/README.md). The thumb can move only by
 lifting (a gait: the other three must hold the object alone), by sliding (its kinetic drag must be held
 by the others: never, against three fingers on the parallel face, `tests/test_stability.py`) or by
 rolling (its contact moves by ρ θ, about 14 mm per radian of the tip's turn). This script asks the
@@ -31,6 +32,10 @@ not asked. Measures; asserts nothing.
 
     python benchmarks/thumb_release.py                               # shipped problems + paper pairs _0, _1
     python benchmarks/thumb_release.py --pairs 0 --out /tmp/t.json   # shipped problems only
+
+Measured (`--pairs 5`, results/thumb_release.json, table in benchmarks/README.md): on 21 of the 30
+problems no reachable placement holds the object in force closure without the thumb; under the supporting
+gravity 17 of 30 have one.
 """
 
 from __future__ import annotations
