@@ -1,6 +1,6 @@
 """The `regrasp simulate` subcommand: execute a plan in MuJoCo (`regrasp_casadi.simulate`).
 
-    regrasp simulate plan.json [--gravity X Y Z | --gravity plan] [--html sim.html] [--json report.json]
+    regrasp simulate plan.json [--gravity X Y Z | plan | support] [--html sim.html] [--json report.json]
 
 Exit codes (`regrasp_casadi.cli`): 0 the object is held within the tolerances, 1 it is dropped or deviates,
 2 bad input (missing or unreadable plan, bad number, unwritable output).
@@ -26,12 +26,14 @@ def cmd_simulate(args: argparse.Namespace, load_plan: Callable) -> int:
     dropped or deviating (bad input raises, the caller maps it to 2)."""
     from regrasp_casadi.simulate import SimOptions, simulate
 
-    gravity = gravity_values("--gravity", args.gravity, ("plan",)) or (0.0, 0.0, 0.0)
+    gravity = gravity_values("--gravity", args.gravity, ("plan", "support")) or (0.0, 0.0, 0.0)
     out = check_output("--json", args.json)
     html = check_output("--html", args.html)
     plan = load_plan(args.plan)
     if gravity == "plan":
         gravity = certified_gravity(plan, args.plan)
+    elif gravity == "support":
+        gravity = supporting_gravity_of(plan)
     report = simulate(plan, options=SimOptions(gravity_palm=gravity))
     print(report.summary())
     opts = report.options
@@ -68,14 +70,28 @@ def certified_gravity(plan, shown: str) -> tuple[float, float, float]:
     return tuple(float(g) for g in plan.options["gravity_palm"])
 
 
+def supporting_gravity_of(plan) -> tuple[float, float, float]:
+    """The gravity (palm frame, m/s²) that presses the object of `plan`'s initial grasp onto the fingers
+    opposite the one that alone opposes the others (`hand_orientation.supporting_gravity`; the Allegro's
+    thumb): the orientation `regrasp plan --gravity support` certifies for."""
+    from regrasp_casadi.grasp import Grasp
+    from regrasp_casadi.hand_orientation import supporting_gravity
+    from regrasp_casadi.problem import plan_models
+
+    hand, obj = plan_models(plan)
+    first = Grasp.from_joints(hand, obj, plan.steps[0].q, plan.steps[0].T_palm_object)
+    return tuple(float(g) for g in supporting_gravity(first))
+
+
 def add_simulate_parser(add, *, load_plan: Callable) -> None:
     """The `simulate` subcommand (``add(name, help)`` makes a subparser); ``load_plan(path) -> Plan`` the
     CLI's plan reader."""
     sp = add("simulate", "execute a plan in physics (MuJoCo) and report whether the object is held")
     sp.add_argument("plan", metavar="PLAN.json", help="plan file (JSON)")
-    sp.add_argument("--gravity", nargs="+", metavar="X Y Z|plan",
+    sp.add_argument("--gravity", nargs="+", metavar="X Y Z|plan|support",
                     help="gravity in the palm frame, m/s^2 (default: off; e.g. 0 0 -9.81); 'plan': the "
-                         "gravity the plan was certified for (a plan of --stability gravity)")
+                         "gravity the plan was certified for (a plan of --stability gravity); 'support': "
+                         "pressing the object of the plan's first step onto the fingers opposite the thumb")
     sp.add_argument("--html", metavar="SIM.html", help="write a self-contained replay of the simulated "
                     "motion, the planned object pose as a ghost")
     sp.add_argument("--json", metavar="REPORT.json", help="write the simulation report as JSON")

@@ -10,6 +10,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+import trimesh
 from scipy.spatial.transform import Rotation
 from sim_plans import BOX_SHIFT, GRAVITY_DOWN, lifted, make_plan
 
@@ -354,6 +355,16 @@ def test_cli_simulate_exit_codes_and_json(hand, box_problem, tmp_path, capsys):
     argv = ["simulate", str(tmp_path / "certified.json"), "--gravity", "plan", "--json", str(out)]
     assert cli.main(argv) in (cli.EXIT_OK, cli.EXIT_FAILED)
     assert json.loads(out.read_text())["options"]["gravity_palm"] == [0.0, -9.81, 0.0]
+    # "support": 9.81 m/s² against the outward normal of the thumb's face at the first step (trimesh's face
+    # normal of the box mesh, object frame), so the object rests on index, middle and ring
+    argv = ["simulate", str(tmp_path / "held.json"), "--gravity", "support", "--json", str(out)]
+    assert cli.main(argv) == cli.EXIT_OK, capsys.readouterr().out
+    g_palm = np.asarray(json.loads(out.read_text())["options"]["gravity_palm"])
+    thumb = list(hand.fingers).index("thumb")
+    mesh = box_problem.obj.mesh
+    _, _, face = trimesh.proximity.closest_point(mesh, g0.contacts_object[thumb:thumb + 1])
+    g_object = np.asarray(g0.T_palm_object)[:3, :3].T @ g_palm
+    np.testing.assert_allclose(g_object, -9.81 * mesh.face_normals[face[0]], atol=1e-9)
 
 
 def test_urdf_collision_elements_become_geoms(box_problem, tmp_path):
