@@ -9,7 +9,7 @@ rolling (its contact moves by ρ θ, about 14 mm per radian of the tip's turn). 
 first question of the object as it sits in the hand at the initial grasp: is there ANY placement of
 index, middle and ring that the fingers can reach and that holds the object without the thumb?
 
-Per problem, at grasp0's object pose:
+Per problem, at grasp0's object pose (``--at desired``: the desired grasp's object pose and joints):
 
 1. *Reachable contacts.* Each of index, middle and ring gets `--samples` joint configurations uniform in
    its limits (the other fingers at grasp0); a configuration counts when its tip sphere touches the
@@ -35,7 +35,8 @@ not asked. Measures; asserts nothing.
 
 Measured (`--pairs 5`, results/thumb_release.json, table in benchmarks/README.md): on 21 of the 30
 problems no reachable placement holds the object in force closure without the thumb; under the supporting
-gravity 17 of 30 have one.
+gravity 17 of 30 have one. From the desired grasp (`--at desired`, results/thumb_release_desired.json):
+5 of 30 in force closure (10 of 30 at either grasp), 15 of 30 under the supporting gravity.
 """
 
 from __future__ import annotations
@@ -57,12 +58,12 @@ CONE_COS = -0.6
 """cos(180° − 2 atan 0.5): two contacts squeeze an object between them only with normals farther apart."""
 
 
-def reachable_contacts(problem, finger: str, samples: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def reachable_contacts(problem, finger: str, samples: int, seed: int, grasp=None) -> tuple[np.ndarray, np.ndarray]:
     """(contacts (k, 3), outward normals (k, 3)), object frame, of `finger`'s reachable touching
-    configurations at grasp0's object pose (see the module docstring, item 1)."""
+    configurations at `grasp`'s object pose (default grasp0; see the module docstring, item 1)."""
     from regrasp_casadi.stability import contact_normals
 
-    hand, obj, g = problem.hand, problem.obj, problem.grasp0
+    hand, obj, g = problem.hand, problem.obj, grasp or problem.grasp0
     T, q0 = np.asarray(g.T_palm_object, float), np.asarray(g.q, float)
     lo, hi = hand._finite_limits()
     idx = hand.finger_joints[finger]
@@ -126,8 +127,8 @@ def _pinch_search(fc, grasp, cands, others, cos, *, T, hold, triples, rng) -> di
     return {"pinch_certified": int(certified), "pinch_tried": int(triples), "pinch_best_eps": round(best, 5)}
 
 
-def measure(path: str, samples: int, triples: int) -> dict:
-    """The record of one problem (never raises)."""
+def measure(path: str, samples: int, triples: int, at: str = "initial") -> dict:
+    """The record of one problem at its initial or its desired grasp (`at`; never raises)."""
     from regrasp_casadi.certificates import YCB_MASSES
     from regrasp_casadi.hand_orientation import supporting_gravity
     from regrasp_casadi.holding import Holding, HoldingOptions
@@ -137,11 +138,14 @@ def measure(path: str, samples: int, triples: int) -> dict:
     t0 = time.perf_counter()
     try:
         problem = RegraspProblem.load(path)
-        hand, g = problem.hand, problem.grasp0
+        hand = problem.hand
+        g = problem.grasp0 if at == "initial" else problem.grasp_goal
+        if g.q is None:
+            raise ValueError(f"the {at} grasp states no joints")
         T, q0 = np.asarray(g.T_palm_object, float), np.asarray(g.q, float)
         fingers, thumb = list(hand.fingers), hand.thumb
         others = [f for f in fingers if f != thumb]
-        cands = [reachable_contacts(problem, f, samples, seed=k) for k, f in enumerate(others)]
+        cands = [reachable_contacts(problem, f, samples, seed=k, grasp=g) for k, f in enumerate(others)]
         rec["reachable"] = {f: len(c) for f, (c, _) in zip(others, cands, strict=True)}
         hold = np.array([f != thumb for f in fingers])
         rows = [fingers.index(f) for f in others]
@@ -193,6 +197,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", type=int, default=20000, help="joint samples per finger")
     ap.add_argument("--triples", type=int, default=3000, help="random triples certified for force closure")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--at", choices=("initial", "desired"), default="initial",
+                    help="the grasp whose object pose and joints the fingers start from")
     ap.add_argument("--out", type=pathlib.Path, default=HERE / "results" / "thumb_release.json")
     args = ap.parse_args(argv)
     from machine import machine_info
@@ -203,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max(args.workers, 1)) as pool:
         records = list(pool.map(measure, map(str, files), [args.samples] * len(files),
-                                [args.triples] * len(files)))
+                                [args.triples] * len(files), [args.at] * len(files)))
     print("| problem | reachable i/m/r | FC certified | best ε | min cos(index, ring) | pinch FC certified | "
           "COM inside | gravity certified |")
     print("|---|---|---|---|---|---|---|---|")
@@ -218,7 +224,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['gravity_certified']} / {r['gravity_tried']} |")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"machine": machine_info(), "wall_s": round(time.perf_counter() - t0, 1),
-                                    "samples": args.samples, "triples": args.triples, "records": records},
+                                    "samples": args.samples, "triples": args.triples, "at": args.at,
+                                    "records": records},
                                    indent=1))
     print(f"wrote {args.out}")
     return 0
