@@ -1,8 +1,8 @@
 """Can the hand let go of its thumb? Reachable holding sets without the thumb, certified or not.
 
-Every goal of the shipped problems and of the paper pairs moves all four contacts (at least 3 cm on
-average), the thumb's too, while the thumb alone opposes index, middle and ring; the force-closure
-planner stalls on nearly all of them (issue 14; benchmarks/README.md). The thumb can move only by
+Every goal of the shipped problems and of the paper pairs moves the thumb's contact 22-72 mm while the
+thumb alone opposes index, middle and ring; the force-closure planner stalls on nearly all of them
+(issue 14; benchmarks/README.md). The thumb can move only by
 lifting (a gait: the other three must hold the object alone), by sliding (its kinetic drag must be held
 by the others: never, against three fingers on the parallel face, `tests/test_stability.py`) or by
 rolling (its contact moves by ρ θ, about 14 mm per radian of the tip's turn). This script asks the
