@@ -128,66 +128,90 @@ def _pinch_search(fc, grasp, cands, others, cos, *, T, hold, triples, rng) -> di
 
 
 def measure(path: str, samples: int, triples: int, at: str = "initial") -> dict:
-    """The record of one problem at its initial or its desired grasp (`at`; never raises)."""
-    from regrasp_casadi.certificates import YCB_MASSES
-    from regrasp_casadi.hand_orientation import supporting_gravity
-    from regrasp_casadi.holding import Holding, HoldingOptions
+    """The record of one problem (never raises) at its initial or its desired grasp (`at`), or ("plan") at
+    `PLAN_POSES` steps spread over the paper planner's svd plan (their counts summed, per pose in
+    "poses")."""
+    from regrasp_casadi.grasp import Grasp
+    from regrasp_casadi.planner import plan_regrasp
     from regrasp_casadi.problem import RegraspProblem
 
     rec: dict = {"problem": pathlib.Path(path).stem}
     t0 = time.perf_counter()
     try:
         problem = RegraspProblem.load(path)
-        hand = problem.hand
-        g = problem.grasp0 if at == "initial" else problem.grasp_goal
-        if g.q is None:
-            raise ValueError(f"the {at} grasp states no joints")
-        T, q0 = np.asarray(g.T_palm_object, float), np.asarray(g.q, float)
-        fingers, thumb = list(hand.fingers), hand.thumb
-        others = [f for f in fingers if f != thumb]
-        cands = [reachable_contacts(problem, f, samples, seed=k, grasp=g) for k, f in enumerate(others)]
-        rec["reachable"] = {f: len(c) for f, (c, _) in zip(others, cands, strict=True)}
-        hold = np.array([f != thumb for f in fingers])
-        rows = [fingers.index(f) for f in others]
-        fc = Holding(hand, problem.obj, "force_closure", HoldingOptions())
-        c0, n0 = fc.contacts(q0, T)
-        rng = np.random.default_rng(0)
-        if min(rec["reachable"].values()) == 0:
-            rec.update(fc_certified=0, fc_tried=0, pinch_certified=0, pinch_tried=0, gravity_inside=0,
-                       gravity_certified=0, gravity_tried=0)
-            return rec
-
-        def grasp(choice):
-            c, n = c0.copy(), n0.copy()
-            for r, (cc, nn), j in zip(rows, cands, choice, strict=True):
-                c[r], n[r] = cc[j], nn[j]
-            return c, n
-
-        certified, best = 0, -np.inf
-        for _ in range(triples):
-            c, n = grasp([rng.integers(len(cc)) for cc, _ in cands])
-            cert = fc.hypothetical(c, n, T, hold, np.zeros(len(fingers), bool))
-            certified += fc.certified(cert)
-            best = max(best, float(cert.margin))
-        i_index, i_ring = others.index("index"), others.index("ring")
-        cos = cands[i_index][1] @ cands[i_ring][1].T
-        rec.update(fc_certified=certified, fc_tried=triples, fc_best_eps=round(best, 5),
-                   min_cos_index_ring=round(float(np.min(cos)), 3), pinch_pairs=int(np.sum(cos < CONE_COS)))
-        rec.update(_pinch_search(fc, grasp, cands, others, cos, T=T, hold=hold, triples=triples, rng=rng))
-        text = pathlib.Path(path).read_text()
-        mass = next((m for name, m in YCB_MASSES.items() if name in text), None)
-        gravity_palm = supporting_gravity(g)
-        grav = Holding(hand, problem.obj, "gravity", HoldingOptions(mu=0.4, min_load_share=0.5), mass=mass,
-                       gravity_palm=gravity_palm)
-        inside = _com_inside(grav, T, gravity_palm, [c for c, _ in cands])
-        pick = inside[rng.permutation(len(inside))[:max(triples // 10, 1)]]
-        ok = sum(grav.certified(grav.hypothetical(*grasp(t), T, hold, np.zeros(len(fingers), bool)))
-                 for t in pick)
-        rec.update(mass_kg=round(float(grav.mass), 4), triples_total=int(np.prod([len(c) for c, _ in cands])),
-                   gravity_inside=int(len(inside)), gravity_certified=int(ok), gravity_tried=int(len(pick)))
+        if at == "plan":
+            plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", stability="none")
+            picks = sorted({int(round(k)) for k in np.linspace(1, len(plan.steps) - 2, PLAN_POSES)})
+            grasps = [Grasp.from_joints(problem.hand, problem.obj, plan.steps[k].q, plan.steps[k].T_palm_object)
+                      for k in picks]
+            poses = [{"step": k, **_at_grasp(problem, g, path, samples, triples)} for k, g in zip(picks, grasps,
+                                                                                               strict=True)]
+            rec.update({key: sum(p.get(key, 0) for p in poses) for key in _COUNTS}, plan_status=plan.status,
+                       poses=poses)
+        else:
+            g = problem.grasp0 if at == "initial" else problem.grasp_goal
+            if g.q is None:
+                raise ValueError(f"the {at} grasp states no joints")
+            rec.update(_at_grasp(problem, g, path, samples, triples))
     except Exception as exc:  # recorded, not raised
         rec["error"] = f"{type(exc).__name__}: {exc}"
     rec["time_s"] = round(time.perf_counter() - t0, 1)
+    return rec
+
+
+PLAN_POSES = 4
+"""Steps of the paper planner's plan examined by ``--at plan`` (spread from its second to its last but one)."""
+_COUNTS = ("fc_certified", "fc_tried", "pinch_certified", "pinch_tried", "gravity_inside", "gravity_certified",
+           "gravity_tried")
+
+
+def _at_grasp(problem, g, path: str, samples: int, triples: int) -> dict:
+    """Items 1-3 of the module docstring at grasp `g` (its object pose and joints)."""
+    from regrasp_casadi.certificates import YCB_MASSES
+    from regrasp_casadi.hand_orientation import supporting_gravity
+    from regrasp_casadi.holding import Holding, HoldingOptions
+
+    hand, rec = problem.hand, {}
+    T, q0 = np.asarray(g.T_palm_object, float), np.asarray(g.q, float)
+    fingers, thumb = list(hand.fingers), hand.thumb
+    others = [f for f in fingers if f != thumb]
+    cands = [reachable_contacts(problem, f, samples, seed=k, grasp=g) for k, f in enumerate(others)]
+    rec["reachable"] = {f: len(c) for f, (c, _) in zip(others, cands, strict=True)}
+    hold = np.array([f != thumb for f in fingers])
+    rows = [fingers.index(f) for f in others]
+    fc = Holding(hand, problem.obj, "force_closure", HoldingOptions())
+    c0, n0 = fc.contacts(q0, T)
+    rng = np.random.default_rng(0)
+    if min(rec["reachable"].values()) == 0:
+        return {**rec, **dict.fromkeys(_COUNTS, 0)}
+
+    def grasp(choice):
+        c, n = c0.copy(), n0.copy()
+        for r, (cc, nn), j in zip(rows, cands, choice, strict=True):
+            c[r], n[r] = cc[j], nn[j]
+        return c, n
+
+    certified, best = 0, -np.inf
+    for _ in range(triples):
+        c, n = grasp([rng.integers(len(cc)) for cc, _ in cands])
+        cert = fc.hypothetical(c, n, T, hold, np.zeros(len(fingers), bool))
+        certified += fc.certified(cert)
+        best = max(best, float(cert.margin))
+    i_index, i_ring = others.index("index"), others.index("ring")
+    cos = cands[i_index][1] @ cands[i_ring][1].T
+    rec.update(fc_certified=certified, fc_tried=triples, fc_best_eps=round(best, 5),
+               min_cos_index_ring=round(float(np.min(cos)), 3), pinch_pairs=int(np.sum(cos < CONE_COS)))
+    rec.update(_pinch_search(fc, grasp, cands, others, cos, T=T, hold=hold, triples=triples, rng=rng))
+    text = pathlib.Path(path).read_text()
+    mass = next((m for name, m in YCB_MASSES.items() if name in text), None)
+    gravity_palm = supporting_gravity(g)
+    grav = Holding(hand, problem.obj, "gravity", HoldingOptions(mu=0.4, min_load_share=0.5), mass=mass,
+                   gravity_palm=gravity_palm)
+    inside = _com_inside(grav, T, gravity_palm, [c for c, _ in cands])
+    pick = inside[rng.permutation(len(inside))[:max(triples // 10, 1)]]
+    ok = sum(grav.certified(grav.hypothetical(*grasp(t), T, hold, np.zeros(len(fingers), bool))) for t in pick)
+    rec.update(mass_kg=round(float(grav.mass), 4), triples_total=int(np.prod([len(c) for c, _ in cands])),
+               gravity_inside=int(len(inside)), gravity_certified=int(ok), gravity_tried=int(len(pick)))
     return rec
 
 
@@ -197,8 +221,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", type=int, default=20000, help="joint samples per finger")
     ap.add_argument("--triples", type=int, default=3000, help="random triples certified for force closure")
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--at", choices=("initial", "desired"), default="initial",
-                    help="the grasp whose object pose and joints the fingers start from")
+    ap.add_argument("--at", choices=("initial", "desired", "plan"), default="initial",
+                    help="the grasp whose object pose and joints the fingers start from ('plan': steps of the "
+                         "paper planner's svd plan)")
     ap.add_argument("--out", type=pathlib.Path, default=HERE / "results" / "thumb_release.json")
     args = ap.parse_args(argv)
     from machine import machine_info
@@ -217,7 +242,8 @@ def main(argv: list[str] | None = None) -> int:
         if "error" in r:
             print(f"| {r['problem']} | error: {r['error']} |")
             continue
-        reach = "/".join(str(v) for v in r["reachable"].values())
+        reach = "/".join(str(v) for v in r["reachable"].values()) if "reachable" in r else \
+            f"{len(r.get('poses', []))} poses"
         print(f"| {r['problem']} | {reach} | {r['fc_certified']} / {r['fc_tried']} | {r.get('fc_best_eps', '—')} | "
               f"{r.get('min_cos_index_ring', '—')} | {r.get('pinch_certified', 0)} / {r.get('pinch_tried', 0)} | "
               f"{r['gravity_inside']} of {r.get('triples_total', 0)} | "
