@@ -27,8 +27,8 @@ Per problem, at grasp0's object pose (``--at desired``: the desired grasp's obje
    up to `--triples` / 10 of those that do are certified.
 
 A problem with no certified triple cannot move its thumb by a gait with that certificate from this
-object pose; whether another object pose (a reposing) or another grasp of the others would help is
-not asked. Measures; asserts nothing.
+object pose; ``--at plan`` asks the same at four steps of the paper planner's plan (other object poses).
+Measures; asserts nothing.
 
     python benchmarks/thumb_release.py                               # shipped problems + paper pairs _0, _1
     python benchmarks/thumb_release.py --pairs 0 --out /tmp/t.json   # shipped problems only
