@@ -22,17 +22,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.grasp_metrics import pose_error
-from regrasp_casadi.transforms import exp_so3, log_SO3, make_T
+from regrasp_casadi.in_grasp import clip_pose
+from regrasp_casadi.transforms import exp_so3, interpolate_pose, log_SO3, make_T
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
-    from regrasp_casadi.in_grasp import InGraspNLP
+    from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions
     from regrasp_casadi.motion import StepPath
     from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.plan import PlanStep
     from regrasp_casadi.planner import PlannerOptions
 
-__all__ = ["FinalMoves", "run_final_moves", "decide_status", "pose_distance"]
+__all__ = ["FinalMoves", "run_final_moves", "decide_status", "pose_distance", "trust_region", "part_way"]
 
 FinalStop = Literal["reached", "small_gain", "no_gain", "rejected", "contact_drift", "uncertified",
                     "unrealisable", "time_budget", "not_run"]
@@ -95,6 +96,17 @@ def pose_distance(T_a: NDArray, T_b: NDArray, obj: ObjectModel) -> float:
     return position + radius * rotation
 
 
+def trust_region(options: InGraspOptions) -> tuple[float, float]:
+    """OPT2's trust region as (largest translation, m; largest rotation angle, rad) of one move."""
+    return options.max_translation, 2.0 * float(np.arctan(options.max_rotation))
+
+
+def part_way(T_now: NDArray, T_goal: NDArray, trust: tuple[float, float], reach: float) -> NDArray:
+    """The pose (4, 4) `reach` ∈ (0, 1] of the way from `T_now` to `T_goal`, or to where the trust
+    region `trust` (`trust_region`) ends on the way when that is nearer."""
+    return interpolate_pose(T_now, clip_pose(T_now, T_goal, *trust), reach)
+
+
 def run_final_moves(run: FinalMoveRun, options: PlannerOptions) -> FinalMoves:
     """In-grasp moves towards `run.T_palm_object_goal` (see the module docstring); each accepted move is
     a "final" step of `run`.
@@ -105,7 +117,7 @@ def run_final_moves(run: FinalMoveRun, options: PlannerOptions) -> FinalMoves:
     closer is not accepted and retried with half the stretch, then ends the moves ("no_gain")."""
     t_start, T_goal, zeta = time.perf_counter(), run.T_palm_object_goal, options.zeta
     distances = [pose_distance(run.T_palm_object, T_goal, run.obj)]
-    stretch = _Stretch()
+    stretch = _Stretch(trust=trust_region(run.svd_nlp.options))
     while True:
         if distances[-1] <= options.final_pose_tol:
             return FinalMoves("reached", len(distances) - 1, tuple(distances))
@@ -139,12 +151,23 @@ class _Stretch:
     MAX_ANGLE = np.pi / 3
     """Largest rotation from the current pose a stretched target may ask, rad (no wrap-around)."""
 
-    def __init__(self, radius: float = 0.1) -> None:
+    MIN_REACH = 0.25
+    """Smallest part of the way to the desired pose a move asks for once the stretch is 1."""
+
+    def __init__(self, radius: float = 0.1, trust: tuple[float, float] = (np.inf, np.inf)) -> None:
         self.s_t = self.s_r = 1.0
+        self.reach = 1.0
+        """Part of a move's way the moves ask for (halved after a refused move at stretch 1, down to
+        `MIN_REACH`: a shorter move rolls the contacts less far and its path slides less)."""
         self.radius = radius
+        self.trust = trust
+        """OPT2's trust region (largest translation, m, and rotation, rad, of one move): a move's way."""
 
     def target(self, T_now: NDArray, T_goal: NDArray) -> NDArray:
-        """The stretched target pose (4, 4), palm frame."""
+        """The stretched target pose (4, 4), palm frame; with a reach below 1, that part of the way to
+        the desired pose within the trust region."""
+        if self.reach < 1.0:
+            return part_way(T_now, T_goal, self.trust, self.reach)
         w = log_SO3(T_now[:3, :3].T @ T_goal[:3, :3])
         s_r = min(self.s_r, self.MAX_ANGLE / max(float(np.linalg.norm(w)), 1e-12))
         t = T_now[:3, 3] + self.s_t * (T_goal[:3, 3] - T_now[:3, 3])
@@ -168,9 +191,13 @@ class _Stretch:
         return float(np.clip(self.DAMPING / rho, 1.0, self.MAX)) if rho > 0 else 1.0
 
     def shrink(self) -> bool:
-        """Halve the stretch after a move that could not be accepted; False if it is 1 already."""
+        """Halve the stretch after a move that could not be accepted, or, once it is 1, the reach; False
+        when both are at their least."""
         if self.s_t <= 1.0 and self.s_r <= 1.0:
-            return False
+            if self.reach <= self.MIN_REACH:
+                return False
+            self.reach = max(self.MIN_REACH, 0.5 * self.reach)
+            return True
         self.s_t, self.s_r = max(1.0, 0.5 * self.s_t), max(1.0, 0.5 * self.s_r)
         return True
 

@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from regrasp_casadi.objects import ObjectModel
 
 __all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "workspace_hull", "svd_target",
-           "is_round", "ROUND_GOAL_PULL"]
+           "is_round", "ROUND_GOAL_PULL", "clip_pose"]
 
 _log = logging.getLogger(__name__)
 
@@ -193,7 +193,7 @@ def is_round(obj: ObjectModel, tol: float = 0.05) -> bool:
     return bool(r.max() - r.min() <= tol * r.max())
 
 
-def _clip_pose(T_from: NDArray, T_to: NDArray, max_translation: float, max_angle: float) -> NDArray:
+def clip_pose(T_from: NDArray, T_to: NDArray, max_translation: float, max_angle: float) -> NDArray:
     """The pose a fraction of the way from `T_from` to `T_to` (translation linear, rotation geodesic)
     such that it is at most `max_translation` (m) and `max_angle` (rad) from `T_from`: the trust region.
     A target beyond it would only pull harder against the relaxed rigidity, i.e. make the tips slide."""
@@ -295,7 +295,9 @@ class InGraspNLP:
         SD(R^T(FK_r(\Theta) - t), M) + \delta_r = \rho \;\; \forall \text{fingers } r
 
     Relaxed rigidity (Sundaralingam & Hermans, 2017): with c_r the tip-sphere centres and
-    R_{O,r} the tip orientations in the object frame at the start,
+    R_{O,r} the tip orientations in the object frame at the start (c_r taken where the tip touches the
+    surface: its contact plus ρ along the contact normal, so that a start tip off the surface within
+    ``surface_tol`` does not pull against the tips' surface equality below),
     ``E_pos = Σ_r ||FK_r(Θ) − (R c_r' + t)||²`` (mm²) and ``E_or = Σ_r ||R_r(Θ) − R R_{O,r}||_F²``.
     The paper's c_r' = c_r holds each tip centre at its start point of the object; with ``rolling`` (the
     default, not in the paper) c_r' = c_r + ρ θ_r × n_r, where the tip rolls to without slipping: θ_r the
@@ -462,9 +464,13 @@ class InGraspNLP:
         c_tips = np.asarray(p_object_tips, float).reshape(self._m, 3)
         R_tips = np.hstack(list(tip_frames(self.hand, q, T0)[1]))  # [R_1 | … | R_m], the same for every try
         contacts = object_contacts(self.obj, c_tips)
-        grasp = {"R0_palm_object": T0[:3, :3], "t0_palm_object": T0[:3, 3], "p_object_tips": c_tips.T,
-                 "R_object_tips": R_tips, "n_object_tips": contact_normals(contacts, c_tips).T,
-                 **self._tip_planes(c_tips)}
+        n_tips = contact_normals(contacts, c_tips)
+        # the relaxed rigidity holds each tip where it would touch the surface (ρ from its contact, along
+        # its normal): a start tip off the surface by up to `surface_tol` would otherwise pull against the
+        # tips' surface equality, and a move that only restores it would count as no better than staying
+        on_surface = contacts + self.hand.tip_radius * n_tips
+        grasp = {"R0_palm_object": T0[:3, :3], "t0_palm_object": T0[:3, 3], "p_object_tips": on_surface.T,
+                 "R_object_tips": R_tips, "n_object_tips": n_tips.T, **self._tip_planes(c_tips)}
         if self.method == "sd":
             if p_object_tips_goal is None:
                 raise ValueError("method 'sd' needs p_object_tips_goal")
@@ -475,7 +481,7 @@ class InGraspNLP:
         if T_target is None:
             raise ValueError("method 'svd' needs T_target")
         o = self.options
-        T_far = _clip_pose(T0, np.asarray(T_target, float), o.max_translation,
+        T_far = clip_pose(T0, np.asarray(T_target, float), o.max_translation,
                            2.0 * np.arctan(o.max_rotation))
         spent = (0.0, 0)
         for fraction in (1.0, 0.5, 0.25):

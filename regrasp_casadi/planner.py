@@ -19,7 +19,14 @@ from numpy.typing import NDArray
 
 from regrasp_casadi.certificates import Certificate
 from regrasp_casadi.certified_round import accept_gait, certified_round
-from regrasp_casadi.final_moves import FinalMoves, decide_status, pose_distance, run_final_moves
+from regrasp_casadi.final_moves import (
+    FinalMoves,
+    decide_status,
+    part_way,
+    pose_distance,
+    run_final_moves,
+    trust_region,
+)
 from regrasp_casadi.finger_gait import FingerGaitNLP
 from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.grasp_metrics import tip_frames, tip_slip
@@ -278,14 +285,17 @@ class _Run:
         eps = [holding_quality(contacts, tips, fingers.index(f), self.com, self.length) for f in todo]
         return todo.pop(int(np.argmax(eps)))
 
-    def repose(self, escape: bool) -> None:
+    def repose(self, escape: bool, reach: float = 1.0) -> None:
         """One in-grasp reposing (OPT2) towards the method's target: the SVD target pose, the fingers'
-        workspaces, or (`escape`, after iterations without progress) the desired object pose, then
-        accepted only if it brings the object closer to it (monotone, as the final moves); a
-        rejected reposing leaves the object where it is."""
+        workspaces, or (`escape`, after iterations without progress) the desired object pose (`reach` < 1:
+        that part of the way within the trust region, `final_moves.part_way`), then accepted only if it
+        brings the object closer to it (monotone, as the final moves); a rejected reposing leaves the
+        object where it is."""
         nlp = self.repose_nlp
         if escape:  # repose towards the desired object pose
-            nlp, target = self.svd_nlp, {"T_target": self.T_palm_object_goal}
+            T_target = self.T_palm_object_goal if reach >= 1.0 else part_way(
+                self.T_palm_object, self.T_palm_object_goal, trust_region(self.svd_nlp.options), reach)
+            nlp, target = self.svd_nlp, {"T_target": T_target}
         elif self.options.method == "svd":
             T_target = svd_target(self.T_palm_object, self.steps[-1].contacts_object, self.goal_contacts,
                                   self.T_palm_object_goal, self.svd_nlp.goal_pull)
@@ -362,10 +372,11 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
 def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
              progress: ProgressCallback | None, stop: InterruptRequest) -> Plan:
     """Algorithm 1's loop: gait rounds and reposings until the contacts are within ζ, then the final
-    moves (and, when they stop on a drifting contact, `_regait` and on), the iteration limit, a stall,
-    or a Ctrl-C (`stop`: the plan so far, status "interrupted")."""
+    moves (and, when they stop short, `_polish` and the final moves again, or `_regait` and on), the
+    iteration limit, a stall, or a Ctrl-C (`stop`: the plan so far, status "interrupted")."""
     watch = _ProgressWatch(options, run.largest_error())
     back: _Fallback | None = None  # the run's state before the last `_regait`
+    polished = 0  # `_polish` rounds so far
 
     def end(status: str, detail: str) -> Plan:  # a plan that did not converge: before a failed regait
         if back is None:
@@ -375,6 +386,9 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
     while run.iterations < options.max_iters:
         if run.largest_error() <= options.zeta:
             outcome = run_final_moves(run, options) if options.final_move else FinalMoves("not_run", 0, ())
+            if polished < options.final_polish and _polish(run, options, outcome):
+                polished += 1
+                continue
             state = _Fallback(len(run.steps), run.q, run.T_palm_object, outcome, run.iterations)
             if not _regait(run, options, outcome):
                 return _finish(grasp0, grasp_goal, options, t_start, run, outcome)
@@ -439,12 +453,36 @@ def _regait(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
     if not (options.final_regait and outcome.stop in _REGAIT_STOPS and run.iterations < options.max_iters):
         return False
     n_steps = len(run.steps)
-    run.repose(escape=True)
+    for reach in _REGAIT_REACH:  # a shorter reposing where a longer one is refused
+        run.repose(escape=True, reach=reach)
+        if len(run.steps) > n_steps:
+            break
     run.iterations += 1  # an iteration of its own: the loop ends within max_iters
     run.errors.append(float(np.mean(run.steps[-1].contact_error)))
     return len(run.steps) > n_steps
 
 
+def _polish(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
+    """After final moves that stopped short of the desired pose (`outcome`) with the contacts within ζ
+    but not at their goals, one more gait round (OPT1 to the goal contacts at the current pose); True
+    when it moved a finger and iterations remain, so that the final moves are tried again from grasps
+    nearer the desired one (`PlannerOptions.final_polish`)."""
+    if outcome.stop in _NO_POLISH_STOPS or run.iterations >= options.max_iters:
+        return False
+    if run.largest_error() <= options.skip_tol:
+        return False
+    n_steps = len(run.steps)
+    run.gait_round()
+    run.iterations += 1  # an iteration of its own: the loop ends within max_iters
+    run.errors.append(float(np.mean(run.steps[-1].contact_error)))
+    return len(run.steps) > n_steps
+
+
+_NO_POLISH_STOPS = ("reached", "not_run", "time_budget", "contact_drift")
+"""Final-move stops after which `_polish` does not run: the pose is reached, nothing was tried, or the
+contacts rolled away from their goals (`_regait`'s case: a reposing towards the pose first)."""
+_REGAIT_REACH = (1.0, 0.5, 0.25)
+"""Parts of the way to the desired pose `_regait`'s reposing tries, longest first."""
 _REGAIT_STOPS = ("contact_drift", "rejected", "unrealisable", "uncertified", "no_gain")
 """Final-move stops after which `_regait` tries a reposing towards the desired pose."""
 

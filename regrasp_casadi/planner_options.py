@@ -67,6 +67,12 @@ class PlannerOptions:
     refused), repose towards the desired pose anyway (accepted when it brings the object closer) and go
     on with gait rounds, which bring the contacts back, then try the final moves again (within
     `max_iters`; `planner._regait`). False: stop there."""
+    final_polish: int = 2
+    """When the final moves stop short of the desired pose with the contacts within ζ but not at their
+    goals, this many more gait rounds (each followed by the final moves again) bring the contacts to
+    their goals first (`planner._polish`); a grasp nearer the desired one leaves the final moves less in
+    their way (its joints, the fingers' self-clearance). Not after a contact drift (`final_regait`'s
+    case). 0: none."""
     final_time_budget: float = 60.0
     """Time the final in-grasp moves may take, s (as many moves as fit; each is bounded by the OPT2
     trust region)."""

@@ -13,6 +13,7 @@ import pytest
 from regrasp_casadi.final_moves import pose_distance, run_final_moves
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.grasp_metrics import pose_error
+from regrasp_casadi.in_grasp import InGraspOptions
 from regrasp_casadi.planner import PlannerOptions, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.transforms import interpolate_pose, make_T, rot_axis_angle, transform_points
@@ -64,11 +65,15 @@ class _ScriptedOPT2:
     except on the calls in
     `bad`, where it moves it away from the desired pose (a result the loop must not accept)."""
 
+    options = InGraspOptions(max_translation=0.01, max_rotation=float(np.tan(0.05)))  # the trust region
+
     def __init__(self, tips_object, T_goal, rho=0.3, bad=()):
         self.tips_object, self.T_goal, self.rho, self.bad, self.calls = tips_object, T_goal, rho, set(bad), 0
+        self.targets = []
 
     def solve(self, q, T_palm_object, p_object_tips, *, T_target):
         self.calls += 1
+        self.targets.append(np.array(T_target))
         far = interpolate_pose(T_palm_object, self.T_goal, -0.5)  # away from the desired pose
         position, rotation = pose_error(T_palm_object, T_target)  # a trust region of 1 cm and 0.1 rad:
         frac = min(self.rho, 0.01 / max(position, 1e-12), 0.1 / max(rotation, 1e-12))
@@ -135,9 +140,22 @@ def test_a_move_that_gains_less_than_the_threshold_ends_the_moves():
 
 
 def test_a_move_away_from_a_plain_target_ends_the_moves_unaccepted():
-    run = _Run(T0, T_GOAL, bad=(1,))
+    run = _Run(T0, T_GOAL, bad=(1, 2, 3))  # asked the whole way, then half and a quarter of a move's way
     out = run_final_moves(run, PlannerOptions())
     assert out.stop == "no_gain" and out.moves == 0 and run.steps == [] and out.note
+    assert run.svd_nlp.calls == 3
+
+
+def test_a_refused_plain_move_is_asked_again_for_half_of_a_moves_way():
+    # the desired pose is 5 cm and 0.4 rad away, the trust region 1 cm and 0.1 rad: a move's way ends at a
+    # fifth of the way to it (the translation's bound), so the retry asks for a tenth
+    run = _Run(T0, T_GOAL, bad=(1,))
+    out = run_final_moves(run, PlannerOptions())
+    assert out.stop == "reached" and out.moves >= 1
+    first, second = run.svd_nlp.targets[:2]
+    assert np.allclose(first, T_GOAL)
+    position, rotation = pose_error(T0, second)
+    assert position == pytest.approx(0.005, abs=1e-9) and rotation == pytest.approx(0.04, abs=1e-9)
 
 
 def test_no_time_budget_no_move():
