@@ -214,6 +214,11 @@ def _held_joints(ctx: _Context, q: NDArray, joints: NDArray) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- knots
+_JUMP_ROUNDS = 3
+"""Refinement rounds in a row in which the largest gap between knots stays above `_JUMP_SHRINK` of the
+smallest largest gap so far, after which `_knots` takes it for a jump of the IK (bisecting a continuous
+curve halves its largest gap every round) and stops refining."""
+_JUMP_SHRINK = 0.75
 def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
            ) -> tuple[NDArray[np.float64], NDArray[np.float64], str]:
     """Knots of a curve from s = 0 to s = 1, dense enough for `max_point_step`.
@@ -224,7 +229,7 @@ def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
     `max_interpolation_error` of the midpoint, both halves are straight. A straight segment (every
     segment of a `linear` curve) is split into equal joint-space parts, which is exactly the
     interpolation rule, without solving. A knot the curve cannot solve keeps its best effort and is
-    reported.
+    reported, and the refinement stops there (the path fails whatever its other knots).
 
     Returns:
         s (k,), knots (k, n), and why: "" or where the curve failed / that the bound was not reached.
@@ -244,9 +249,11 @@ def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
         Q.append(solve(s, Q[-1] if Q else None))
     straight = [linear] * (len(Q) - 1)
     motion = ctx.segment_motion(np.array(Q))
-    for _ in range(o.max_refinements):
-        if np.all(motion <= o.max_point_step):
-            break
+    largest, kept, rounds = float(np.max(motion)), 0, 0  # kept: rounds the largest gap did not shrink
+    for rounds in range(1, o.max_refinements + 1):  # noqa: B007 (`rounds` is reported below)
+        if failures or np.all(motion <= o.max_point_step) or kept >= _JUMP_ROUNDS:
+            rounds -= 1
+            break  # (a knot not reached, or a jump, fails the path: refining further changes no verdict)
         s_new, Q_new, straight_new = [s_knots[0]], [Q[0]], []
         bisected: list[tuple[int, NDArray, NDArray]] = []  # (segment index in straight_new, q_lin, q_mid)
         for i, m in enumerate(motion):
@@ -273,12 +280,15 @@ def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
                 straight_new[k] = straight_new[k + 1] = bool(gap <= o.max_interpolation_error)
         s_knots, Q, straight = s_new, Q_new, straight_new
         motion = ctx.segment_motion(np.array(Q))
+        kept = kept + 1 if np.max(motion) > _JUMP_SHRINK * largest else 0
+        largest = min(largest, float(np.max(motion)))
     why = ""
     if failures:
         why = f"{len(failures)} knot{'s' if len(failures) > 1 else ''} not reached, first at {failures[0]}"
     elif np.max(motion) > o.max_point_step:
+        jump = " (a jump: bisection no longer shrinks it)" if kept >= _JUMP_ROUNDS else ""
         why = (f"knots {np.max(motion) * 1e3:.2f} mm apart > {o.max_point_step * 1e3:.2f} mm after "
-               f"{o.max_refinements} refinements")
+               f"{rounds} refinements{jump}")
     return np.array(s_knots), np.array(Q), why
 
 
