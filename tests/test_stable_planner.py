@@ -209,7 +209,8 @@ def test_the_paper_planner_is_unchanged(plans):
     # fingertips roll (OPT2's rolling relaxed rigidity, the re-gaits after the final moves); the first
     # record, on main 5964f02, showed the certificates' code leaves "none" unchanged; the benchmark
     # compares every shipped problem and both methods), and again when OPT2 held the tips where they touch
-    # the surface and the final moves polished the contacts and retried shorter moves)
+    # the surface and the final moves polished the contacts and retried shorter moves, and when OPT2's
+    # corrections re-solved from their last solution)
     paper, _ = plans
     before = {(r["problem"], r["method"]): r for r in json.loads(BEFORE.read_text())["records"]}
     ref = before[("box_shift", "svd")]
