@@ -220,10 +220,13 @@ after a round is above `_JUMP_SHRINK` of the largest gap this many rounds before
 curve halves its largest gap every round once the knots are dense enough (1/8 in three rounds), but not
 always before: measured on the paper planner's reposing paths (soft-scrub_3 sd, mustard_2 svd, sugar-box_0
 svd), a path that passed after 7 rounds had the gaps 3.46, 3.36, 2.83, 2.16, 1.51, 1.42, 1.16, 0.80 mm, all
-at its end (its IK knots approach the step's end joints slowly);
-jumps stayed flat or grew (27.3, 25.3, 24.4, 24.0, 23.8, 23.7 mm ...; 4.6, 3.5, 3.3, 6.6 mm) or converged
-to a constant (... 1.75, 1.23, 1.25, 1.25 mm)."""
+at its end (its IK knots approach the step's end joints slowly); jumps stayed flat or grew (27.3, 25.3,
+24.4, 24.0, 23.8, 23.7 mm ...; 4.6, 3.5, 3.3, 6.6 mm) or converged to a constant (... 1.75, 1.23, 1.25,
+1.25 mm)."""
 _JUMP_SHRINK = 0.95
+"""See `_JUMP_ROUNDS`: the part of its largest gap a jump keeps over that many rounds."""
+
+
 def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
            ) -> tuple[NDArray[np.float64], NDArray[np.float64], str]:
     """Knots of a curve from s = 0 to s = 1, dense enough for `max_point_step`.
