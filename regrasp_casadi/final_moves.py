@@ -22,18 +22,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.grasp_metrics import pose_error
-from regrasp_casadi.in_grasp import clip_pose
+from regrasp_casadi.in_grasp import clip_pose, trust_region
 from regrasp_casadi.transforms import exp_so3, interpolate_pose, log_SO3, make_T
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
-    from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions
+    from regrasp_casadi.in_grasp import InGraspNLP
     from regrasp_casadi.motion import StepPath
     from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.plan import PlanStep
     from regrasp_casadi.planner import PlannerOptions
 
-__all__ = ["FinalMoves", "run_final_moves", "decide_status", "pose_distance", "trust_region", "part_way"]
+__all__ = ["FinalMoves", "run_final_moves", "decide_status", "pose_distance", "part_way"]
 
 FinalStop = Literal["reached", "small_gain", "no_gain", "rejected", "contact_drift", "uncertified",
                     "unrealisable", "time_budget", "not_run"]
@@ -96,14 +96,9 @@ def pose_distance(T_a: NDArray, T_b: NDArray, obj: ObjectModel) -> float:
     return position + radius * rotation
 
 
-def trust_region(options: InGraspOptions) -> tuple[float, float]:
-    """OPT2's trust region as (largest translation, m; largest rotation angle, rad) of one move."""
-    return options.max_translation, 2.0 * float(np.arctan(options.max_rotation))
-
-
 def part_way(T_now: NDArray, T_goal: NDArray, trust: tuple[float, float], reach: float) -> NDArray:
     """The pose (4, 4) `reach` ∈ (0, 1] of the way from `T_now` to `T_goal`, or to where the trust
-    region `trust` (`trust_region`) ends on the way when that is nearer."""
+    region `trust` (`in_grasp.trust_region`) ends on the way when that is nearer."""
     return interpolate_pose(T_now, clip_pose(T_now, T_goal, *trust), reach)
 
 

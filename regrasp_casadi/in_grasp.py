@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from regrasp_casadi.objects import ObjectModel
 
 __all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "workspace_hull", "svd_target",
-           "is_round", "ROUND_GOAL_PULL", "clip_pose"]
+           "is_round", "ROUND_GOAL_PULL", "clip_pose", "trust_region"]
 
 _log = logging.getLogger(__name__)
 
@@ -191,6 +191,12 @@ def is_round(obj: ObjectModel, tol: float = 0.05) -> bool:
     points = np.vstack([mesh.vertices, mesh.triangles_center])
     r = np.linalg.norm(points - np.mean(mesh.bounds, axis=0), axis=1)
     return bool(r.max() - r.min() <= tol * r.max())
+
+
+def trust_region(options: InGraspOptions) -> tuple[float, float]:
+    """OPT2's trust region as (largest translation, m; largest rotation angle, rad) of one move: the
+    bounds `max_translation` and `max_rotation` (on the Cayley vector, tan(θ/2)) of `options`."""
+    return options.max_translation, 2.0 * float(np.arctan(options.max_rotation))
 
 
 def clip_pose(T_from: NDArray, T_to: NDArray, max_translation: float, max_angle: float) -> NDArray:
@@ -481,8 +487,7 @@ class InGraspNLP:
         if T_target is None:
             raise ValueError("method 'svd' needs T_target")
         o = self.options
-        T_far = clip_pose(T0, np.asarray(T_target, float), o.max_translation,
-                           2.0 * np.arctan(o.max_rotation))
+        T_far = clip_pose(T0, np.asarray(T_target, float), *trust_region(o))
         spent = (0.0, 0)
         for fraction in (1.0, 0.5, 0.25):
             T_try = interpolate_pose(T0, T_far, fraction)

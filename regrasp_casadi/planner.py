@@ -19,20 +19,13 @@ from numpy.typing import NDArray
 
 from regrasp_casadi.certificates import Certificate
 from regrasp_casadi.certified_round import accept_gait, certified_round
-from regrasp_casadi.final_moves import (
-    FinalMoves,
-    decide_status,
-    part_way,
-    pose_distance,
-    run_final_moves,
-    trust_region,
-)
+from regrasp_casadi.final_moves import FinalMoves, decide_status, part_way, pose_distance, run_final_moves
 from regrasp_casadi.finger_gait import FingerGaitNLP
 from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.grasp_metrics import tip_frames, tip_slip
 from regrasp_casadi.hand_orientation import pinned_opposer_hint
 from regrasp_casadi.holding import STABILITY_KINDS, Holding
-from regrasp_casadi.in_grasp import InGraspNLP, svd_target
+from regrasp_casadi.in_grasp import InGraspNLP, svd_target, trust_region
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions

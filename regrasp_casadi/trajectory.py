@@ -259,11 +259,10 @@ def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
     motion = ctx.segment_motion(np.array(Q))
     largest: list[float] = []  # the largest gap between knots after each round (the coarse knots' not:
     # a first bisection may widen it, its midpoint warm started off the straight line)
-    jump, rounds = False, 0
-    for rounds in range(1, o.max_refinements + 1):  # noqa: B007 (`rounds` is reported below)
+    jump = False
+    for _ in range(o.max_refinements):
         jump = len(largest) > _JUMP_ROUNDS and largest[-1] > _JUMP_SHRINK * largest[-1 - _JUMP_ROUNDS]
         if failures or np.all(motion <= o.max_point_step) or jump:
-            rounds -= 1
             break  # (a knot not reached, or a jump, fails the path: refining further changes no verdict)
         s_new, Q_new, straight_new = [s_knots[0]], [Q[0]], []
         bisected: list[tuple[int, NDArray, NDArray]] = []  # (segment index in straight_new, q_lin, q_mid)
@@ -298,7 +297,7 @@ def _knots(ctx: _Context, curve: Curve, n_coarse: int, linear: bool = False
     elif np.max(motion) > o.max_point_step:
         jump_text = " (a jump: bisection no longer shrinks it)" if jump else ""
         why = (f"knots {np.max(motion) * 1e3:.2f} mm apart > {o.max_point_step * 1e3:.2f} mm after "
-               f"{rounds} refinements{jump_text}")
+               f"{len(largest)} refinements{jump_text}")
     return np.array(s_knots), np.array(Q), why
 
 

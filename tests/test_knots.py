@@ -43,8 +43,7 @@ def test_a_continuous_curve_is_refined_until_every_point_moves_at_most_the_bound
 
 
 def test_a_jump_fails_the_path_after_a_few_rounds_that_do_not_shrink_it(ctx):
-    curve, _ = _counting(lambda s, _w: (_q_of(ctx.hand, s, jump=0.2), ""))
-    s, Q, why = _knots(ctx, curve, 3)
+    s, Q, why = _knots(ctx, lambda s_, _w: (_q_of(ctx.hand, s_, jump=0.2), ""), 3)
     gaps = ctx.segment_motion(Q)
     assert "a jump" in why and np.max(gaps) > 10 * ctx.options.max_point_step
     # the jump's segment straddles s = 0.5, where the joints jump by 0.2 rad
