@@ -72,6 +72,10 @@ class SolverOptions:
     """Tolerance of an "acceptable" solution, reached for `acceptable_iter` iterations."""
     acceptable_iter: int | None = 10
     """Iterations at the acceptable level after which the solve stops as acceptable."""
+    acceptable_obj_change_tol: float | None = None
+    """The acceptable level also asks the objective's relative change per iteration to be below this."""
+    acceptable_constr_viol_tol: float | None = None
+    """The acceptable level's bound on the constraint violation (the constraints' own units)."""
     constr_viol_tol: float = 1e-6
     """Absolute tolerance on the constraint violation."""
     warm_start: bool = True
@@ -106,9 +110,23 @@ class NLPOptions:
     (`Hand.self_collision_pairs`; OPT1: the moving finger's against the others), m; a pair closer than
     this at the start of a solve may not get closer; None: no self-collision constraint (the paper's)."""
 
+    settled_change: float | None = None
+    """A solve stops (as IPOPT's "acceptable") once the objective has changed by less than this share of
+    itself in each of `settled_iterations` iterations in a row with the constraints held within
+    `settled_violation`; None: IPOPT's usual tolerances only."""
+    settled_iterations: int = 3
+    """Iterations in a row the objective must stay settled."""
+    settled_violation: float = 1e-5
+    """Largest constraint violation of a settled solve, m (the NLPs' distance constraints are in mm)."""
+
     def solver_options(self) -> SolverOptions:
-        """The `SolverOptions` of the NLP (the defaults, with this print level)."""
-        return SolverOptions(print_level=self.print_level)
+        """The `SolverOptions` of the NLP: the defaults, with this print level and the settled stop."""
+        if self.settled_change is None:
+            return SolverOptions(print_level=self.print_level)
+        return SolverOptions(print_level=self.print_level, acceptable_tol=1e6,
+                             acceptable_iter=self.settled_iterations,
+                             acceptable_obj_change_tol=self.settled_change,
+                             acceptable_constr_viol_tol=1e3 * self.settled_violation)
 
 
 def backend_options(options: SolverOptions) -> dict:
@@ -125,6 +143,10 @@ def backend_options(options: SolverOptions) -> dict:
         opts["ipopt.acceptable_tol"] = o.acceptable_tol
     if o.acceptable_iter is not None:
         opts["ipopt.acceptable_iter"] = o.acceptable_iter
+    if o.acceptable_obj_change_tol is not None:
+        opts["ipopt.acceptable_obj_change_tol"] = o.acceptable_obj_change_tol
+    if o.acceptable_constr_viol_tol is not None:
+        opts["ipopt.acceptable_constr_viol_tol"] = o.acceptable_constr_viol_tol
     opts["ipopt.constr_viol_tol"] = o.constr_viol_tol
     if o.bound_relax_factor is not None:
         opts["ipopt.bound_relax_factor"] = o.bound_relax_factor

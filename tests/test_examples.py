@@ -56,7 +56,8 @@ def _check_03(out: str, tmp_path: Path) -> None:
 
 
 def _check_04(out: str, tmp_path: Path) -> None:
-    assert "status Solve_Succeeded" in out
+    # OPT2 stops once its objective has settled (`InGraspOptions.settled_change`): IPOPT's "acceptable"
+    assert "status Solve_Succeeded" in out or "status Solved_To_Acceptable_Level" in out
     distance, angle = _numbers(r"object {n} mm and {n}° from the target pose", out)
     assert distance < 5.0 and angle < 5.0  # closer than the start (5 mm and 5° away) in both
     slip, clearance = _numbers(r"largest contact slip {n} mm; hand at least {n} mm", out)

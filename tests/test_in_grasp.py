@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from regrasp_casadi.grasp_metrics import tip_slip
-from regrasp_casadi.in_grasp import InGraspNLP, svd_target, workspace_hull
+from regrasp_casadi.in_grasp import InGraspNLP, InGraspOptions, svd_target, workspace_hull
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.tip_ik import tip_ik
 from regrasp_casadi.transforms import exp_so3, inv_T, kabsch, make_T, rotation_angle, transform_points
@@ -91,6 +91,33 @@ def test_unreachable_target_moves_towards_it(problem, pose_nlp):
     assert after < before - 1e-3
     assert res.max_slip <= 1e-3
     assert _clearance(problem, res.q, res.T_palm_object).min() >= 0.0
+
+
+def test_settled_stop_ends_near_the_tight_optimum_in_fewer_iterations(problem, pose_nlp):
+    """OPT2 stops once its objective has settled (`settled_change`). Against IPOPT's tight tolerances,
+    on four random reposings of the box (up to ~15° and 1 cm): every move valid by the exact checks, the
+    object at most 1 mm / 0.5° farther from the target (measured: 0.76 mm / 0.14° on one move, whose
+    tight solve turned the joints by a further 1.1 rad along a nearly flat direction in 82 more
+    iterations; ≤ 0.03 mm on the others), and fewer iterations in all."""
+    g0 = problem.grasp0
+    tight = InGraspNLP(problem.hand, problem.obj, "svd", InGraspOptions(settled_change=None))
+    rng = np.random.default_rng(0)
+    iterations = np.zeros(2)
+    for _ in range(4):
+        T_target = np.array(g0.T_palm_object)
+        T_target[:3, :3] = exp_so3(rng.normal(size=3) * 0.15) @ T_target[:3, :3]
+        T_target[:3, 3] += rng.normal(size=3) * 0.01
+        dist = []
+        for k, nlp in enumerate((pose_nlp, tight)):
+            nlp.reset()  # both cold: the same start
+            res = nlp.solve(g0.q, g0.T_palm_object, g0.tip_centers_object, T_target=T_target)
+            assert res.success, res.status
+            iterations[k] += res.iterations
+            dist.append((np.linalg.norm(res.T_palm_object[:3, 3] - T_target[:3, 3]),
+                         rotation_angle(res.T_palm_object[:3, :3], T_target[:3, :3])))
+        assert dist[0][0] <= dist[1][0] + 1e-3
+        assert dist[0][1] <= dist[1][1] + np.radians(0.5)
+    assert iterations[0] < iterations[1]
 
 
 @pytest.mark.parametrize("axis", range(3))
