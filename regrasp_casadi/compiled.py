@@ -17,8 +17,9 @@ in a private temporary folder beside its target and renamed onto it (atomic), so
 the same NLP both succeed and either one's file is kept.
 
 Measured (benchmarks/README.md, "Compiled NLPs"): per solve 1.4x (OPT1) and 1.5x (OPT2) faster, plans
-~25 % faster with the cache filled, but compiling takes ~6 min per YCB object (OPT1 ~35 s per finger,
-OPT2 ~3.5 min: its C source is ~17 MB), hence `DEFAULT` off.
+~25 % faster with the cache filled, but compiling takes minutes: OPT1 ~35 s per finger and object, OPT2
+~4 min per method (its C source is ~17 MB), once per hand (OPT2's NLP is the same for every object: its
+object data are parameters), hence `DEFAULT` off.
 """
 
 from __future__ import annotations

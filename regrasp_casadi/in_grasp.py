@@ -95,11 +95,8 @@ class InGraspOptions(_solver.NLPOptions):
     offset_radius: float = 0.005
     """σ, m: distance from the start over which a positive exact-distance offset of a sphere fades."""
     settled_change: float | None = 1e-3
-    """See `NLPOptions.settled_change`. On for OPT2: its rolling tips leave directions of nearly no
-    curvature, along which IPOPT zig-zags against the tips' curved surface equalities for tens of
-    iterations after the objective has settled (IPOPT's log, banana_1 svd: 58 iterations, the objective
-    within 0.1 % of its end value from the 27th). Paper benchmark (stability "none"): OPT2 iterations
-    median 15 / 16 → 8 / 8 (svd / sd), per call 85 / 93 → 55 / 54 ms, the same 48 of 50 converged."""
+    """`NLPOptions.settled_change`, on: IPOPT zig-zags along the rolling tips' nearly flat directions for
+    tens of iterations after the objective has settled (OPT2 iterations median 15 → 8, benchmarks/README)."""
 
 
 @dataclass(frozen=True)
@@ -256,7 +253,8 @@ def _param_layout(method: str, clearance: LocalClearance, m: int, n_planes: int)
         *clearance.blocks("clear").items(),  # local planes and offsets of the non-tip spheres
     ]
     if method == "svd":
-        blocks += [("R_target", (3, 3)), ("t_target", (3,))]  # target object pose, palm frame
+        blocks += [("R_target", (3, 3)), ("t_target", (3,)),  # target object pose, palm frame
+                   ("ell_mm", (1,))]  # ℓ, the object's radius, mm
     else:
         blocks += [("p_object_tips_goal", (3, m))]  # goal tip-sphere centres (columns), object frame, m
     return _solver.ParamLayout(blocks)
@@ -358,11 +356,12 @@ class InGraspNLP:
         k = radii.size
         self._radii, self._k, self._n, self._m = radii, k, n, m
         tau = float(DEFAULT_TAU if o.tau is None else o.tau)
-        n_local = self._n_local = min(LOCAL_PIECES, len(obj.pieces))  # pieces per local plane set
+        n_local = self._n_local = LOCAL_PIECES  # pieces per local plane set (an object of fewer repeats
+        # its nearest: `convex.select_local_planes`), so that the NLP does not depend on the object
         self.clearance = LocalClearance(obj.pieces, k, o.clearance_pieces, o.clearance_local_planes, tau,
                                         o.offset_radius)
         """The non-tip spheres' clearance model (local plane sets, two-way offsets)."""
-        ell_mm = _MM * 0.5 * float(np.linalg.norm(obj.mesh.extents))
+        self._ell_mm = _MM * 0.5 * float(np.linalg.norm(obj.mesh.extents))  # ℓ, a parameter
 
         # decision variables
         q = ca.SX.sym("q", n)
@@ -379,7 +378,7 @@ class InGraspNLP:
         e_pos, e_or = _relaxed_rigidity(hand, q, tips_palm, (R, t), P["p_object_tips"], P["R_object_tips"],
                                         P["n_object_tips"] if o.rolling else None)
         if method == "svd":
-            e_des = ca.sumsqr(_MM * (t - P["t_target"])) + 0.5 * ell_mm**2 * terms.rotation_error_sq(
+            e_des = ca.sumsqr(_MM * (t - P["t_target"])) + 0.5 * P["ell_mm"] ** 2 * terms.rotation_error_sq(
                 R, P["R_target"])
         else:
             self.hulls = [workspace_hull(hand, f) for f in hand.fingers]
@@ -497,7 +496,8 @@ class InGraspNLP:
         spent = (0.0, 0)
         for fraction in (1.0, 0.5, 0.25):
             T_try = interpolate_pose(T0, T_far, fraction)
-            res = self._solve_once(q, c_tips, grasp, {"R_target": T_try[:3, :3], "t_target": T_try[:3, 3]})
+            res = self._solve_once(q, c_tips, grasp, {"R_target": T_try[:3, :3], "t_target": T_try[:3, 3],
+                                                      "ell_mm": np.array([self._ell_mm])})
             spent = (spent[0] + res.solve_time, spent[1] + res.iterations)
             if res.success or res.max_slip <= o.max_slip:
                 break

@@ -77,7 +77,7 @@ class LocalClearance:
             raise ValueError(f"LocalClearance needs k ≥ 0, n_pieces ≥ 1, n_planes ≥ 1 and offset_radius > 0; "
                              f"got {k}, {n_pieces}, {n_planes}, {offset_radius}")
         self.pieces, self.k, self.tau, self.sigma = pieces, int(k), float(tau), float(offset_radius)
-        self.n_pieces = min(int(n_pieces), len(pieces))
+        self.n_pieces = int(n_pieces)  # an object of fewer pieces repeats its nearest (`select_local_planes`)
         self.n_planes = int(n_planes)
         # one numeric function for the smooth distance s_l and the model d_l at given points
         S = ca.SX.sym("p_object", 3, self.k)

@@ -116,6 +116,28 @@ def test_opt1_compiled_matches_interpreted_and_is_cached(jit_cache, monkeypatch,
     _same(a, again.solve(g0.q, g0.T_palm_object, goal))
 
 
+@pytest.mark.skipif(compiled.find_compiler() is None, reason="no C compiler")
+@pytest.mark.parametrize("method", ["svd", "sd"])
+def test_opt2_is_one_nlp_per_hand(monkeypatch, method):
+    """OPT2 does not depend on the object (ℓ and the local planes are parameters, an object of fewer
+    convex pieces repeats its nearest): the box (one piece) and the bottle (several) give one compiled
+    library key, so one library serves every object of a hand."""
+    keys = []
+
+    def record(name, nlp, backend, opts):  # the key `compiled.solver` would compile under, no compiling
+        keys.append(compiled.library_key(nlp, backend, opts, compiled.find_compiler()))
+        return ca.nlpsol(name, backend, nlp, opts)
+
+    monkeypatch.setattr(compiled, "solver", record)
+    pieces = []
+    for name in ("box_rotate", "bottle_regrasp"):
+        problem = RegraspProblem.load(PROBLEMS / f"{name}.yaml")
+        pieces.append(len(problem.obj.pieces))
+        _build(monkeypatch, "1", lambda: InGraspNLP(problem.hand, problem.obj, method))  # noqa: B023
+    assert pieces[0] == 1 and pieces[1] > 1
+    assert len(keys) == 2 and keys[0] == keys[1]
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(compiled.find_compiler() is None, reason="no C compiler")
 def test_opt2_compiled_matches_interpreted(jit_cache, monkeypatch):
