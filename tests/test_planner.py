@@ -47,7 +47,8 @@ PAPER_STOPS = {
                                "(`_Run.unrealisable`) and the plan stops unconverged",
     ("box_shift", "sd"): "since the tips roll (stop 23) the reposing at step 18 has a path whose IK "
                          "jumps (knots 15 mm apart) and slides a tip 1.9 mm: refused, the plan ends in "
-                         "'solver_failure' with the index 10 mm and the ring 19 mm from their goals "
+                         "'solver_failure' (since OPT1 holds a link closer than β no worse: 'stalled' "
+                         "after 13 iterations of gaits alone) with the ring 19 mm from its goal "
                          "(measured 2026-12-03; the shipped fingerprints show it since the rolling tips)",
 }
 """Shipped problems on which the paper planner (stability "none") stops before converging (measured);
