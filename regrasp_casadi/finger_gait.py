@@ -31,7 +31,6 @@ _log = logging.getLogger(__name__)
 
 _CM2 = 1e4  # objective scale: m² → cm²
 _MM = 1e3  # distance-constraint scale: m → mm
-_SLACK = 5e-6  # a clearance held at its start value may give this much, m (the start strictly inside)
 
 
 @dataclass(frozen=True)
@@ -276,7 +275,7 @@ class FingerGaitNLP:
         start = self._evaluate(x0, params(np.zeros(1 + self._k), planes))
         if self._k:  # a sphere closer than β at the start (OPT2 accepts down to β/2) may get no closer
             lbg = bounds.lbg.copy()
-            lbg[1:1 + self._k] = _MM * np.minimum(o.beta, start.exact[1:] - self._radii - _SLACK)
+            lbg[1:1 + self._k] = _MM * _solver.no_worse(o.beta, start.exact[1:] - self._radii)
             bounds = replace(bounds, lbg=lbg)
         corr = _solver.correct_offsets(solve_with, evaluate,
                                        done, new_offsets, offsets=(start.exact - start.smooth, planes),

@@ -48,8 +48,6 @@ planner (stability "none"): with 0 the contacts converged while the object drift
 from the desired pose (2 pose_not_reached); with 0.5, 7 of 10 converged and verified; with 0.25, 10 of 10
 converged, 9 verified. Other objects keep 0: on the shipped problems 0.25 changed 4 of 5 svd plans
 (flat_tool_regrasp then failed verify)."""
-_SLACK = 5e-6  # a constraint held at its start value ("no worse") may give this much, m, so that the
-# start is strictly inside for the interior-point solver (`SelfCollisionConstraint.holds` allows 10 µm)
 
 
 @dataclass(frozen=True)
@@ -486,7 +484,7 @@ class InGraspNLP:
             if p_object_tips_goal is None:
                 raise ValueError("method 'sd' needs p_object_tips_goal")
             target = {"p_object_tips_goal": np.asarray(p_object_tips_goal, float).reshape(self._m, 3).T}
-            res = self._solve_once(q, c_tips, grasp, target)
+            res = self._solve_once(q, grasp, target)
             res.record("opt2")
             return res
         if T_target is None:
@@ -496,8 +494,8 @@ class InGraspNLP:
         spent = (0.0, 0)
         for fraction in (1.0, 0.5, 0.25):
             T_try = interpolate_pose(T0, T_far, fraction)
-            res = self._solve_once(q, c_tips, grasp, {"R_target": T_try[:3, :3], "t_target": T_try[:3, 3],
-                                                      "ell_mm": np.array([self._ell_mm])})
+            res = self._solve_once(q, grasp, {"R_target": T_try[:3, :3], "t_target": T_try[:3, 3],
+                                              "ell_mm": np.array([self._ell_mm])})
             spent = (spent[0] + res.solve_time, spent[1] + res.iterations)
             if res.success or res.max_slip <= o.max_slip:
                 break
@@ -505,7 +503,7 @@ class InGraspNLP:
         res.record("opt2")  # per-solve statistics (solve_log), when recorded
         return res
 
-    def _solve_once(self, q, c_tips, grasp: dict, target: dict) -> InGraspResult:
+    def _solve_once(self, q, grasp: dict, target: dict) -> InGraspResult:
         """One move; `grasp` (the start pose, tips and their local planes) and `target` (pose or goal tip
         centres) are parameter blocks of `layout`. The clearance model is taken at the start (local
         planes, two-way offsets: `LocalClearance.at_start`), a sphere already closer than β keeps at least
@@ -529,9 +527,9 @@ class InGraspNLP:
         def solve_with(x, off: _Offsets):  # from the grasp, then each correction from the last solution
             _, model = self.clearance.evaluate(p_start, off.clearance)
             lbg = bounds.lbg.copy()  # a sphere closer than β at the start keeps its start value (no worse)
-            lbg[:k] = _MM * np.minimum(o.beta, model - self._radii - _SLACK)
+            lbg[:k] = _MM * _solver.no_worse(o.beta, model - self._radii)
             if floor is not None:  # the same slack for self-collision pairs at their start value
-                lbg[lbg.size - floor.size:] -= _MM * _SLACK * (floor < sc.clearance)
+                lbg[lbg.size - floor.size:] -= _MM * _solver.NO_WORSE_SLACK * (floor < sc.clearance)
             b = replace(bounds, lbg=lbg)
             return self.warm_start.solve(self._solver, b, x0=x, p=params(off))
 

@@ -36,6 +36,8 @@ __all__ = [
     "backend_options",
     "build_solver",
     "Bounds",
+    "NO_WORSE_SLACK",
+    "no_worse",
     "SolveResult",
     "succeeded",
     "solve",
@@ -196,6 +198,17 @@ class Bounds:
     def kwargs(self) -> dict[str, NDArray[np.float64]]:
         """The bounds as keyword arguments of `solve`."""
         return {"lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}
+
+
+NO_WORSE_SLACK = 5e-6
+"""How much a constraint held at its start value ("no worse") may give, m, so that the start is strictly
+inside for the interior-point solver (`SelfCollisionConstraint.holds` allows 10 µm)."""
+
+
+def no_worse(bound: float, start: ArrayLike) -> NDArray[np.float64]:
+    """Lower bounds (m) of distance constraints that must reach `bound` but are held no worse than their
+    start values `start` (m) where those are below it: min(bound, start − `NO_WORSE_SLACK`)."""
+    return np.minimum(bound, np.asarray(start, dtype=float) - NO_WORSE_SLACK)
 
 
 # ------------------------------------------------------------------------------------ solve, success
