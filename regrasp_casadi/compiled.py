@@ -60,6 +60,8 @@ TIMEOUT = 1800.0
 FUNCTIONS = ("nlp_f", "nlp_g", "nlp_grad", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l")
 """The backend's functions put in the library besides the NLP itself (`generate_dependencies`' list)."""
 
+_IN_LIBRARY = ("hess_lag", "jac_g", "grad_f")
+"""`nlpsol` options of user-given derivative functions: compiled into the library, not passed again."""
 _COUNTERS = {"compiles": 0}
 _WARNED: set[str] = set()
 
@@ -131,11 +133,12 @@ def _compiler_id(path: str) -> tuple[str, tuple[str, ...]]:
 def library_key(nlp: dict, backend: str, opts: dict, compiler: str) -> str:
     """The cache key (hex) of `nlp` ({"x", "p", "f", "g"}) built with `backend` and `opts` by the compiler
     at path `compiler`: IPOPT's own ("ipopt."-prefixed) options do not change the generated code, except
-    the Hessian approximation, and are left out."""
+    the Hessian approximation, and are left out; a user-given derivative Function (`hess_lag`) enters by its
+    serialization."""
     x = nlp["x"]
     empty = type(x)(0, 1)
     fg = ca.Function("nlp", [x, nlp.get("p", empty)], [nlp["f"], nlp.get("g", empty)])
-    structural = sorted((k, repr(v)) for k, v in opts.items()
+    structural = sorted((k, v.serialize() if isinstance(v, ca.Function) else repr(v)) for k, v in opts.items()
                         if not k.startswith("ipopt.") or k == "ipopt.hessian_approximation")
     h = hashlib.sha256()
     identity, flags = _compiler_id(compiler)
@@ -170,7 +173,8 @@ def solver(name: str, nlp: dict, backend: str, opts: dict) -> ca.Function:
         if fresh:
             interpreted = ca.nlpsol(name, backend, nlp, opts)
             _compile(interpreted, path, compiler)
-        result = ca.nlpsol(name, backend, str(path), opts)
+        # the library holds the NLP's own functions, a user-given Hessian (`hess_lag`) among them
+        result = ca.nlpsol(name, backend, str(path), {k: v for k, v in opts.items() if k not in _IN_LIBRARY})
     except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
         _warn_once("failed", "compiling NLP %s failed, solving it interpreted (warned once): %s", name,
                    str(exc).strip()[-2000:])

@@ -194,8 +194,8 @@ class FingerGaitNLP:
             lbg=lbg, ubg=ubg)
         # solver
         nlp = {"x": q_r, "p": p, "f": f, "g": g}
-        self._solver = _solver.build_solver(f"finger_gait_{finger}", nlp,
-                                            o.solver_options())
+        curved = None if o.clearance_curvature else np.r_[0, np.arange(1 + k, len(lbg))]  # tip, η, self
+        self._solver = _solver.build_solver(f"finger_gait_{finger}", nlp, o.solver_options(), curved)
         # numeric helper: tip and sphere points (object frame) and their smooth distances, no offsets
         self._points = ca.Function("gait_points", [q_r, p], [c_obj, s_obj, sd_tip, sd_l],
                                    ["q_r", "p"], ["p_object_tip", "p_object_spheres", "sd_tip", "sd_l"])

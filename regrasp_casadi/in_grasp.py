@@ -92,6 +92,8 @@ class InGraspOptions(_solver.NLPOptions):
     """Planes per piece in each non-tip sphere's local plane set."""
     offset_radius: float = 0.005
     """σ, m: distance from the start over which a positive exact-distance offset of a sphere fades."""
+    clearance_curvature: bool = False
+    """`NLPOptions.clearance_curvature`, off: OPT2 per call 63 / 50 → 45 / 43 ms (svd / sd, README)."""
     settled_change: float | None = 1e-3
     """`NLPOptions.settled_change`, on: IPOPT zig-zags along the rolling tips' nearly flat directions for
     tens of iterations after the objective has settled (OPT2 iterations median 15 → 8, benchmarks/README)."""
@@ -137,7 +139,8 @@ def workspace_hull(hand: Hand, finger: str, n_samples: int = 4000, seed: int = 0
     hull = ConvexHull(pts)
     normals = hull.equations[:, :3]
     # merge near-duplicate planes, keep the largest-area representatives
-    areas = np.array([_facet_area(pts[s]) for s in hull.simplices])
+    tri = pts[hull.simplices]  # (F, 3, 3) facets
+    areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     order = np.argsort(-areas)
     kept: list[int] = []
     for i in order:
@@ -230,10 +233,6 @@ class _Offsets:
     clearance: ClearanceParams
     delta_tips: NDArray[np.float64]
     """(m,) exact − smooth distance of the tips, m."""
-
-
-def _facet_area(tri: NDArray[np.float64]) -> float:
-    return 0.5 * float(np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0])))
 
 
 def _param_layout(method: str, clearance: LocalClearance, m: int, n_planes: int) -> _solver.ParamLayout:
@@ -334,7 +333,8 @@ class InGraspNLP:
     feasible in the model, and a sphere already closer than β keeps at least its start value. After
     each solve the exact distances at the solution correct δ⁻ where the model was optimistic; the move is
     judged with the exact distances. A solution whose objective is not below the start's is replaced by
-    the start (with the target at the current pose the grasp stays where it is).
+    the start (with the target at the current pose the grasp stays where it is). IPOPT's Hessian of the
+    Lagrangian leaves out the clearance constraints' curvature (``clearance_curvature``).
 
     Self-collision (not in the paper; `options.self_clearance` = c, None: off): every sphere pair (a, b)
     of two fingers, or of a finger and the palm, in `Hand.self_collision_pairs(within=c)` keeps
@@ -404,8 +404,9 @@ class InGraspNLP:
             ubx=np.concatenate([hand.q_upper, np.full(3, big_t), np.full(3, big_w)]), lbg=lbg, ubg=ubg)
         self._radii_all = radii_all
         # solver
-        self._solver = _solver.build_solver(f"in_grasp_{method}", {"x": x, "p": p, "f": f, "g": g},
-                                            o.solver_options())
+        self._solver = _solver.build_solver(  # curvature of the tips and self-collision pairs (rows k:)
+            f"in_grasp_{method}", {"x": x, "p": p, "f": f, "g": g}, o.solver_options(),
+            None if o.clearance_curvature else np.arange(k, len(lbg)))
         self._points = ca.Function("in_grasp_points", [x, p], [s_obj, sd_tips, R, t], ["x", "p"],
                                    ["p_object_spheres", "sd_tips", "R_palm_object", "t_palm_object"])
         self._objective = ca.Function("in_grasp_objective", [x, p], [f], ["x", "p"], ["f"])

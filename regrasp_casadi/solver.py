@@ -35,6 +35,7 @@ __all__ = [
     "SolveStats",
     "backend_options",
     "build_solver",
+    "lagrangian_hessian",
     "Bounds",
     "NO_WORSE_SLACK",
     "no_worse",
@@ -112,6 +113,12 @@ class NLPOptions:
     (`Hand.self_collision_pairs`; OPT1: the moving finger's against the others), m; a pair closer than
     this at the start of a solve may not get closer; None: no self-collision constraint (the paper's)."""
 
+    clearance_curvature: bool = True
+    """Whether the Hessian of the Lagrangian includes the curvature of the non-tip spheres' clearance
+    constraints (True: IPOPT's exact Hessian). False: they enter IPOPT's Newton steps linearised (exact
+    Jacobian; `lagrangian_hessian`), the objective's, the tips' and the self-collision pairs' curvature
+    kept; a solution is a KKT point of the same NLP. Why OPT2 has it off: the clearance spheres were about
+    half of its Hessian's evaluation, and the Hessian half of a solve."""
     settled_change: float | None = None
     """A solve stops (as IPOPT's "acceptable") once the objective has changed by less than this share of
     itself in each of `settled_iterations` iterations in a row with the constraints held within
@@ -171,12 +178,39 @@ def backend_options(options: SolverOptions) -> dict:
     return opts
 
 
-def build_solver(name: str, nlp: dict, options: SolverOptions | None = None) -> ca.Function:
+def lagrangian_hessian(nlp: dict, curved_rows: Sequence[int]) -> ca.Function:
+    """The backend's Hessian of the Lagrangian of `nlp` ({"x", "p", "f", "g"}) with the curvature of the
+    constraint rows `curved_rows` only: (x, p, λ_f, λ_g) -> triu ∇²ₓₓ(λ_f f + Σ_{i ∈ curved_rows} λ_g,i g_i),
+    (n_x, n_x) upper triangle. The other rows enter IPOPT's Newton steps linearised (their exact Jacobian,
+    no curvature): the solution is a KKT point of the same NLP, reached by inexact Newton steps. Their
+    convergence is linear, and can stall when a left-out row's curvature (times its multiplier) outweighs
+    the kept: min (x0 − 2)² + x0·x1² on the unit disc, the disc's curvature left out, ran IPOPT's 3000
+    iterations without converging (with it: 5)."""
+    x, f = nlp["x"], nlp["f"]
+    g = nlp.get("g", type(x)(0, 1))
+    p = nlp.get("p", type(x)(0, 1))
+    lam_f = type(x).sym("lam_f")
+    lam_g = type(x).sym("lam_g", g.shape[0])
+    rows = sorted(set(int(i) for i in curved_rows))
+    if rows and not 0 <= rows[0] <= rows[-1] < g.shape[0]:
+        raise ValueError(f"curved_rows must index the {g.shape[0]} constraints, got {rows[0]}..{rows[-1]}")
+    lagrangian = lam_f * f + (ca.dot(lam_g[rows], g[rows]) if rows else 0)
+    hess = ca.triu(ca.hessian(lagrangian, x)[0])
+    return ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [hess], ["x", "p", "lam_f", "lam_g"],
+                       ["triu_hess_gamma_x_x"])
+
+
+def build_solver(name: str, nlp: dict, options: SolverOptions | None = None,
+                 curved_rows: Sequence[int] | None = None) -> ca.Function:
     """Build the solver of `nlp` ({"x", "p", "f", "g"} CasADi expressions) with `BACKEND`; `name` names
-    the CasADi function (it shows in profiles and in `solver.name()`). Compiled to C when
-    `compiled.enabled(options.compiled)` (falling back to the interpreted solver if that fails)."""
+    the CasADi function (it shows in profiles and in `solver.name()`). `curved_rows`: the constraint rows
+    whose curvature the Hessian of the Lagrangian includes (`lagrangian_hessian`; None: all, the exact
+    Hessian). Compiled to C when `compiled.enabled(options.compiled)` (falling back to the interpreted
+    solver if that fails)."""
     options = options or SolverOptions()
     opts = backend_options(options)
+    if curved_rows is not None:
+        opts["hess_lag"] = lagrangian_hessian(nlp, curved_rows)
     if compiled.enabled(options.compiled):
         return compiled.solver(name, nlp, BACKEND, opts)
     return ca.nlpsol(name, BACKEND, nlp, opts)

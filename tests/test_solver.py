@@ -174,3 +174,47 @@ def test_cache_drops_the_least_recently_used():
     cache.get("k", hand, obj, "c", lambda: "c")  # drops "b"
     assert cache.get("k", hand, obj, "a", lambda: "rebuilt a") == "a"
     assert cache.get("k", hand, obj, "b", lambda: "rebuilt b") == "rebuilt b"
+
+
+# ------------------------------------------------------------------ a Hessian without some rows' curvature
+# f = (x0 − p)² + x0·x1², g = [x0 + 0.2·x1², sin(x0)·x1]: closed-form Hessians.
+def _curved_toy():
+    x, p = ca.SX.sym("x", 2), ca.SX.sym("p")
+    return {"x": x, "p": p, "f": (x[0] - p) ** 2 + x[0] * x[1] ** 2,
+            "g": ca.vertcat(x[0] + 0.2 * x[1] ** 2, ca.sin(x[0]) * x[1])}
+
+
+def _closed_form_hessian(x, lam_f, lam_g, rows):
+    x0, x1 = x
+    h_f = np.array([[2.0, 2 * x1], [2 * x1, 2 * x0]])
+    h_g = [np.diag([0.0, 0.4]), np.array([[-np.sin(x0) * x1, np.cos(x0)], [np.cos(x0), 0.0]])]
+    return lam_f * h_f + sum(lam_g[i] * h_g[i] for i in rows)
+
+
+@pytest.mark.parametrize("rows", [None, [1], []])
+def test_the_solver_uses_the_hessian_of_the_curved_rows_only(rows):
+    """`build_solver(..., curved_rows)`: the backend's Hessian of the Lagrangian (the function IPOPT
+    calls) is the closed form λ_f ∇²f + Σ_{i ∈ rows} λ_i ∇²g_i, upper triangle; None: all rows."""
+    s = build_solver("curved_toy", _curved_toy(), SolverOptions(compiled=False), curved_rows=rows)
+    hess = s.get_function("nlp_hess_l")
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        x, lam_f, lam_g = rng.normal(size=2), rng.uniform(0.5, 2), rng.normal(size=2)
+        got = np.asarray(ca.DM(hess(x, 0.3, lam_f, lam_g)).full())
+        want = _closed_form_hessian(x, lam_f, lam_g, range(2) if rows is None else rows)
+        np.testing.assert_allclose(got, np.triu(want), atol=1e-12)
+
+
+def test_a_linearised_row_leaves_the_solution_of_the_nlp_unchanged():
+    """A constraint entering the Newton steps without its curvature changes the path, not the KKT point:
+    min (x0 − 2)² + x0·x1² s.t. x0 + 0.2·x1² ≤ 1 (active at x = (1, 0), its multiplier 2 in closed form)
+    is solved to that point with and without the constraint's curvature; a wrong row index is an error."""
+    nlp = _curved_toy()
+    for rows in (None, [1]):
+        s = build_solver("curved_toy", nlp, SolverOptions(compiled=False, warm_start=False), curved_rows=rows)
+        sol = s(x0=[0.5, 0.2], p=2.0, lbx=-5, ubx=5, lbg=[-np.inf, -5], ubg=[1, 5])
+        assert s.stats()["return_status"] == "Solve_Succeeded"
+        np.testing.assert_allclose(np.asarray(sol["x"]).ravel(), [1.0, 0.0], atol=1e-6)
+        np.testing.assert_allclose(np.asarray(sol["lam_g"]).ravel(), [2.0, 0.0], atol=1e-6)
+    with pytest.raises(ValueError, match="must index the 2 constraints"):
+        build_solver("curved_toy", nlp, curved_rows=[2])

@@ -22,7 +22,7 @@ from regrasp_casadi.constants import SELF_CLEARANCE
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.in_grasp import InGraspNLP
 from regrasp_casadi.problem import RegraspProblem
-from regrasp_casadi.solver import SolverOptions, build_solver
+from regrasp_casadi.solver import BACKEND, SolverOptions, backend_options, build_solver, lagrangian_hessian
 
 PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 
@@ -197,5 +197,25 @@ def test_failing_compiler_falls_back(jit_cache, monkeypatch, tmp_path, caplog, f
         s = build_solver("toy", _toy(), SolverOptions(compiled=True))
     assert any("compiling NLP toy failed" in r.getMessage() for r in caplog.records)
     assert sorted(folder.iterdir()) == before  # no library, no temporary folder left
+    sol = s(x0=[1.0, 1.0], p=2.0, lbx=-10, ubx=10, lbg=-1, ubg=1)
+    np.testing.assert_allclose(np.asarray(sol["x"]).ravel(), [2.0, 0.0], atol=1e-6)
+
+
+@pytest.mark.skipif(compiled.find_compiler() is None, reason="no C compiler")
+def test_a_hessian_without_a_rows_curvature_is_compiled_under_its_own_key(jit_cache):
+    """`build_solver(..., curved_rows=[])` compiled: the library's Hessian of the Lagrangian is the
+    objective's alone (closed form 2·λ_f·I for min (x0 − p)² + x1², the curvature of g = x0·x1 left out),
+    and its cache key differs from the exact Hessian's, so neither library is loaded for the other."""
+    keys = []
+    for rows in (None, []):
+        opts = backend_options(SolverOptions())
+        if rows is not None:
+            opts["hess_lag"] = lagrangian_hessian(_toy(), rows)
+        keys.append(compiled.library_key(_toy(), BACKEND, opts, compiled.find_compiler()))
+    assert keys[0] != keys[1]
+    s = build_solver("toy", _toy(), SolverOptions(compiled=True), curved_rows=[])
+    assert compiled.build_records()[-1].path == str(compiled.library_path(keys[1]))
+    hess = np.asarray(ca.DM(s.get_function("nlp_hess_l")([0.3, -0.7], 2.0, 1.5, 4.0)).full())
+    np.testing.assert_allclose(hess, np.triu(3.0 * np.eye(2)), atol=1e-12)
     sol = s(x0=[1.0, 1.0], p=2.0, lbx=-10, ubx=10, lbg=-1, ubg=1)
     np.testing.assert_allclose(np.asarray(sol["x"]).ravel(), [2.0, 0.0], atol=1e-6)
