@@ -203,8 +203,9 @@ def _judge(run: FinalMoveRun, res, distance: float, zeta: float
     trajectories) if so, else (the stop, why not, None)."""
     if not res.success:
         return "rejected", (f"the final in-grasp move was rejected by the exact checks (slip "
-                            f"{res.max_slip * 1e3:.2f} mm, clearance {res.min_clearance * 1e3:.2f} mm; "
-                            f"IPOPT: {res.status})"), None
+                            f"{res.max_slip * 1e3:.2f} mm, a tip {res.surface_error * 1e3:.2f} mm off the "
+                            f"surface, clearance {res.min_clearance * 1e3:.2f} mm; IPOPT: "
+                            f"{res.status})"), None
     after = pose_distance(res.T_palm_object, run.T_palm_object_goal, run.obj)
     if after >= distance:
         return "no_gain", (f"the next final move would not bring the object closer ({after * 1e3:.2f} mm "
