@@ -18,7 +18,7 @@ the same NLP both succeed and either one's file is kept.
 
 Measured (benchmarks/README.md, "Compiled NLPs"): per solve 1.4x (OPT1) and 1.5x (OPT2) faster, plans
 ~25 % faster with the cache filled, but compiling takes minutes: OPT1 ~35 s per finger and object, OPT2
-~4 min per method (its C source is ~17 MB), once per hand (OPT2's NLP is the same for every object: its
+3–4 min per method (svd 185 s, sd 230 s), once per hand (OPT2's NLP is the same for every object: its
 object data are parameters), hence `DEFAULT` off.
 """
 
