@@ -59,9 +59,13 @@ def _check_constraints(problem, finger, q_before, q_after, eta, beta):
     return step
 
 
+@pytest.mark.parametrize("curvature", [True, False], ids=["exact_hessian", "linearised_clearance"])
 @pytest.mark.parametrize("finger", ["index", "thumb"])
-def test_gait_reaches_a_near_goal(problem, finger):
-    nlp = FingerGaitNLP(problem.hand, problem.obj, finger)
+def test_gait_reaches_a_near_goal(problem, finger, curvature):
+    """With IPOPT's exact Hessian (OPT1's default) and with the clearance constraints' curvature left out
+    of it (`NLPOptions.clearance_curvature`: the Hessian of the tip's, the step bound's and the
+    self-collision rows only), the tip reaches a goal 4 mm along its face and every constraint holds."""
+    nlp = FingerGaitNLP(problem.hand, problem.obj, finger, FingerGaitOptions(clearance_curvature=curvature))
     goal = _on_face_goal(problem, finger, 0.004)
     g0 = problem.grasp0
     res = nlp.solve(g0.q, g0.T_palm_object, goal)
