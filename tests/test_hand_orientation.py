@@ -84,6 +84,7 @@ def test_the_stall_hint_names_a_lone_opposing_thumb(box_shift):
     assert pinned_opposer_hint(box_shift.obj, fingers, step, 0.004) == ""
 
 
+@pytest.mark.slow  # a 26-31 s plan: the default run stays within its 10 minutes (measured 590 s with it)
 def test_a_load_share_keeps_every_holding_finger_pressing():
     """`HoldingOptions.min_load_share`: in every certified step of a gravity plan of box_rotate (supporting
     gravity, μ 0.4, ≤ 3 N per finger), each holding finger's normal force in the stored certificate is at
