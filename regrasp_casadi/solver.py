@@ -117,8 +117,11 @@ class NLPOptions:
     """Whether the Hessian of the Lagrangian includes the curvature of the non-tip spheres' clearance
     constraints (True: IPOPT's exact Hessian). False: they enter IPOPT's Newton steps linearised (exact
     Jacobian; `lagrangian_hessian`), the objective's, the tips' and the self-collision pairs' curvature
-    kept; a solution is a KKT point of the same NLP. Why OPT2 has it off: the clearance spheres were about
-    half of its Hessian's evaluation, and the Hessian half of a solve."""
+    kept; a solution is a KKT point of the same NLP, reached with linear convergence where the clearance
+    constraints are active. Why OPT2 has it off: the clearance spheres' curvature was the costliest part of
+    its Hessian; without it an OPT2 iteration took 5.3 ms instead of 7.2 ms and the paper benchmark's plans
+    14 % less time (interleaved A/B, benchmarks/README "Latest results"). On OPT1 it saved 7 % per call
+    and cost an iteration per solve: on there."""
     settled_change: float | None = None
     """A solve stops (as IPOPT's "acceptable") once the objective has changed by less than this share of
     itself in each of `settled_iterations` iterations in a row with the constraints held within
