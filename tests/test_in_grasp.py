@@ -50,6 +50,17 @@ def _clearance(problem, q, T):
     return obj.exact_signed_distance(centres) - hand.sphere_radii()
 
 
+def _random_reposings(T_palm_object, n: int = 4, seed: int = 0):
+    """`n` target poses (4, 4) of the object near `T_palm_object`: turned by a random rotation vector of
+    0.15 rad per component (std) and moved by 1 cm per axis (std), palm frame."""
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        T_target = np.array(T_palm_object)
+        T_target[:3, :3] = exp_so3(rng.normal(size=3) * 0.15) @ T_target[:3, :3]
+        T_target[:3, 3] += rng.normal(size=3) * 0.01
+        yield T_target
+
+
 def test_small_translations_are_reached_unless_a_constraint_blocks(problem, pose_nlp):
     """Each 2 mm translation of the object is reached, or the object stops at an active constraint
     (a sphere at clearance β, a joint at its limit, or two fingers at the self-clearance, whose smooth
@@ -101,12 +112,8 @@ def test_settled_stop_ends_near_the_tight_optimum_in_fewer_iterations(problem, p
     iterations; ≤ 0.03 mm on the others), and fewer iterations in all."""
     g0 = problem.grasp0
     tight = InGraspNLP(problem.hand, problem.obj, "svd", InGraspOptions(settled_change=None))
-    rng = np.random.default_rng(0)
     iterations = np.zeros(2)
-    for _ in range(4):
-        T_target = np.array(g0.T_palm_object)
-        T_target[:3, :3] = exp_so3(rng.normal(size=3) * 0.15) @ T_target[:3, :3]
-        T_target[:3, 3] += rng.normal(size=3) * 0.01
+    for T_target in _random_reposings(g0.T_palm_object):
         dist = []
         for k, nlp in enumerate((pose_nlp, tight)):
             nlp.reset()  # both cold: the same start
@@ -136,11 +143,7 @@ def test_linearised_clearance_ends_near_the_exact_hessian_optimum(problem):
     assert not planner.options.clearance_curvature  # the default
     exact = InGraspNLP(hand, problem.obj, "svd",
                        InGraspOptions(beta=beta, clearance_curvature=True, settled_change=None))
-    rng = np.random.default_rng(0)
-    for _ in range(4):
-        T_target = np.array(g0.T_palm_object)
-        T_target[:3, :3] = exp_so3(rng.normal(size=3) * 0.15) @ T_target[:3, :3]
-        T_target[:3, 3] += rng.normal(size=3) * 0.01
+    for T_target in _random_reposings(g0.T_palm_object):
         dist = []
         for nlp in (planner, exact):
             nlp.reset()
