@@ -5,7 +5,8 @@
 metres. The sign (positive outside) comes from the angle-weighted pseudo-normal of the closest feature —
 face, edge or vertex (Bærentzen & Aanæs 2005), which is exact for a watertight, consistently wound mesh.
 
-Only numpy, trimesh and scipy are used here (no CasADi): this is the geometry `verify` judges plans with.
+The closest triangle of each point comes from libigl's AABB tree (compiled; built once per mesh), the
+closest point, feature and sign from numpy here; no CasADi: this is the geometry `verify` judges plans with.
 
     >>> exact = ExactDistance(obj.mesh, obj.pieces)
     >>> closest, d = exact.closest_points(points)          # (n, 3) object frame, m; (n,) m
@@ -16,11 +17,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+import igl
 import numpy as np
 import trimesh
 from numpy.typing import ArrayLike, NDArray
-
-from regrasp_casadi.triangle_tree import TriangleTree, rtree_rank
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.convex import ConvexPiece
@@ -42,8 +42,6 @@ class ExactDistance:
     """
 
     def __init__(self, mesh: trimesh.Trimesh, pieces: Sequence[ConvexPiece] = ()):
-        from scipy.spatial import cKDTree
-
         self.mesh = mesh
         self.pieces = tuple(pieces)
         m = mesh.copy()
@@ -55,9 +53,11 @@ class ExactDistance:
         vert_n = np.zeros((len(m.vertices), 3))
         np.add.at(vert_n, m.faces.ravel(), (fn[:, None, :] * m.face_angles[:, :, None]).reshape(-1, 3))
         self._mesh_mm = m
-        self._kdtree = cKDTree(m.vertices)
         self._triangles_mm = np.array(m.triangles)
-        self._tree = TriangleTree(self._triangles_mm, rank=rtree_rank(m.triangles_tree, self._triangles_mm))
+        self._vertices_mm = np.ascontiguousarray(m.vertices, dtype=np.float64)
+        self._faces_igl = np.ascontiguousarray(m.faces, dtype=np.int64)
+        self._aabb = igl.AABB()
+        self._aabb.init(self._vertices_mm, self._faces_igl)
         self._edge_normals = edge_n
         self._face_normals = np.array(fn)
         self._face_edges = np.array(m.faces_unique_edges)
@@ -67,24 +67,14 @@ class ExactDistance:
         """point (its 24 bytes, m) -> (closest point (3,), signed distance, triangle id) of `closest`."""
 
     def _nearest_triangles(self, p_mm: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
-        """Closest points (n, 3) mm, their triangle ids (n,) and distances (n,) mm of points (n, 3) mm.
-
-        Same algorithm as trimesh.proximity.closest_point (candidate triangles from the box reaching the
-        nearest vertex), with the k-d tree built once rather than on every call, and the candidates pruned
-        by their bounding spheres: a triangle whose sphere (centroid, largest vertex distance) lies
-        farther than the nearest vertex cannot hold the closest point (the nearest vertex bounds the
-        distance from above), so only exact distances that can win are computed. The candidates come
-        from a bounding-sphere tree (`triangle_tree`), in the order trimesh's R-tree gave them.
-        """
-        n_pts = len(p_mm)
-        r = self._kdtree.query(p_mm)[0] + 1e-8
-        ids, owner = self._tree.candidates(p_mm, r)
-        q = p_mm[owner]
-        cand = trimesh.triangles.closest_point(self._triangles_mm[ids], q)
-        diff = q - cand
-        d2 = np.einsum("ij,ij->i", diff, diff)
-        best = _first_minima(d2, owner, n_pts)
-        return cand[best], ids[best], np.sqrt(d2[best])
+        """Closest points (n, 3) mm, their triangle ids (n,) and distances (n,) mm of points (n, 3) mm:
+        libigl's AABB tree query (`igl.AABB.squared_distance`), point by point, so that a point's answer
+        does not depend on the other points of its batch. Where several triangles share the closest
+        point (an edge or a vertex), which one it names is the tree's choice; the sign and the normal
+        come from the feature, not from that choice (`_pseudo_normals`)."""
+        d2, tri, c_mm = self._aabb.squared_distance(self._vertices_mm, self._faces_igl,
+                                                    np.ascontiguousarray(p_mm, dtype=np.float64))
+        return c_mm, tri.astype(np.int64), np.sqrt(d2)
 
     def _pseudo_normals(self, c_mm: NDArray[np.float64], tri: NDArray[np.int64]) -> NDArray[np.float64]:
         """Pseudo-normal (n, 3) of the feature of triangle `tri` (n,) that holds the closest point (n, 3) mm:
@@ -107,8 +97,8 @@ class ExactDistance:
         Remembers the answers of the last `CACHE_SIZE` or fewer points (a plan asks for the same sphere
         centres again, e.g. OPT1's check of a step and the trajectory's of its knots) and computes the
         others in one batch; `clear_cache` forgets them. A remembered answer is the one a new query
-        computes, bit for bit: trimesh's closest-point arithmetic goes row by row, so a point's answer
-        does not depend on the other points of its batch (tests/test_exact_distance.py)."""
+        computes, bit for bit: the tree answers point by point, so a point's answer does not depend on
+        the other points of its batch (tests/test_exact_distance.py)."""
         pts = np.ascontiguousarray(np.atleast_2d(np.asarray(points, float)))
         keys = [row.tobytes() for row in pts]
         rows = [self._cache.get(k) for k in keys]
@@ -173,14 +163,3 @@ class ExactDistance:
         """Outward unit normal (n, 3), object frame, of the mesh face closest to each point (n, 3), m."""
         return np.array(self.mesh.face_normals[self.closest(points)[2]])
 
-
-def _first_minima(d2: NDArray[np.float64], owner: NDArray[np.int64], n_pts: int) -> NDArray[np.int64]:
-    """Index (n_pts,) of the smallest d2 of every point, the first one among equal values: d2 (m,) of
-    candidates grouped by their point `owner` (m,), sorted, every point with at least one (what a
-    stable sort of (owner, d2) puts first)."""
-    starts = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=n_pts))[:-1]])
-    hit = np.flatnonzero(d2 == np.minimum.reduceat(d2, starts)[owner])
-    first = hit[np.unique(owner[hit], return_index=True)[1]]
-    if len(first) != n_pts:  # NaN distances: the sort's rule
-        first = np.lexsort((d2, owner))[starts]
-    return first

@@ -87,9 +87,9 @@ def test_near_signed_distance_needs_pieces(box_object):
 
 
 def test_matches_trimesh_on_a_fine_non_convex_mesh_far_and_near():
-    """The candidate pruning (triangle bounding spheres against the nearest vertex) keeps the closest
-    triangle: on a finely tessellated torus (non-convex, 4,608 faces), points on, near, inside and up to
-    6 cm from the surface get trimesh's distances and closest points."""
+    """On a finely tessellated torus (non-convex, 4,608 faces), points on, near, inside and up to 6 cm
+    from the surface get trimesh's distances and closest points (the tree's pruning keeps the closest
+    triangle)."""
     mesh = trimesh.creation.torus(major_radius=0.05, minor_radius=0.02, major_sections=96, minor_sections=24)
     exact = ExactDistance(mesh)
     rng = np.random.default_rng(7)
@@ -124,3 +124,33 @@ def test_remembered_answers_are_the_computed_ones(monkeypatch):
     for got, ref in zip(exact.closest(pts), reference, strict=True):
         np.testing.assert_array_equal(got, ref)
     assert exact.closest(pts[:1])[2].dtype == np.int64
+
+
+def _pseudo_normals_loop(exact: ExactDistance, c_mm, tri):
+    """The pseudo-normals of `ExactDistance._pseudo_normals` written as loops over the points."""
+    m = exact._mesh_mm
+    bary = trimesh.triangles.points_to_barycentric(exact._triangles_mm[tri], c_mm)
+    small = bary < 1e-7
+    n = m.face_normals[tri].copy()
+    n_small = small.sum(axis=1)
+    for i in np.nonzero(n_small == 1)[0]:
+        k = int(np.argmax(small[i]))
+        n[i] = exact._edge_normals[m.faces_unique_edges[tri[i], (k + 1) % 3]]
+    for i in np.nonzero(n_small >= 2)[0]:
+        n[i] = exact._vertex_normals[m.faces[tri[i], int(np.argmax(bary[i]))]]
+    return n
+
+
+def test_pseudo_normals_match_the_loops_on_faces_edges_and_vertices():
+    mesh = trimesh.creation.icosphere(subdivisions=4, radius=0.03)
+    rng = np.random.default_rng(3)
+    mesh.vertices *= rng.uniform(0.9, 1.1, size=(len(mesh.vertices), 1))  # bumpy: edges and vertices matter
+    exact = ExactDistance(mesh)
+    edges = mesh.vertices[mesh.edges_unique].mean(axis=1)
+    surface, _ = trimesh.sample.sample_surface(mesh, 200, seed=5)
+    p = np.vstack([mesh.vertices * 1.02, edges * 1.02, surface + rng.normal(0.0, 0.002, surface.shape)])
+    c, _, tri = exact.closest(p)
+    c_mm = c * 1000.0
+    bary_small = (trimesh.triangles.points_to_barycentric(exact._triangles_mm[tri], c_mm) < 1e-7).sum(axis=1)
+    assert (bary_small == 1).sum() > 50 and (bary_small >= 2).sum() > 50  # edges and vertices are tested
+    np.testing.assert_array_equal(exact._pseudo_normals(c_mm, tri), _pseudo_normals_loop(exact, c_mm, tri))

@@ -30,7 +30,7 @@ FORBIDDEN = (
 )
 """Modules that exact checking must never load: the smooth distance, the NLPs and what builds them."""
 
-EXACT_SIDE = ("objects", "convex", "exact_distance", "triangle_tree")
+EXACT_SIDE = ("objects", "convex", "exact_distance")
 """Modules that must not import CasADi or a forbidden module at module level (lazily inside a function
 is allowed: that is how `ObjectModel` reaches the smooth side)."""
 
