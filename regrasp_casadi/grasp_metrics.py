@@ -29,6 +29,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from regrasp_casadi.transforms import log_SO3_batch
+
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.objects import ObjectModel
 
@@ -77,13 +79,11 @@ def rolling_displacement(R_object_tips_a: ArrayLike, R_object_tips_b: ArrayLike,
     """(m, 3) where each spherical tip's centre goes, object frame, m, when it turns from R_a to R_b
     (m, 3, 3), object frame, rolling without slipping over a surface of outward normals (m, 3) (made
     unit): ρ θ × n, θ the rotation vector of R_b R_aᵀ."""
-    from scipy.spatial.transform import Rotation
-
     R_a = np.asarray(R_object_tips_a, dtype=float).reshape(-1, 3, 3)
     R_b = np.asarray(R_object_tips_b, dtype=float).reshape(-1, 3, 3)
     n = np.asarray(normals_object, dtype=float).reshape(-1, 3)
     n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-    theta = Rotation.from_matrix(R_b @ np.transpose(R_a, (0, 2, 1))).as_rotvec()
+    theta = log_SO3_batch(R_b @ np.transpose(R_a, (0, 2, 1)))
     return float(radius) * np.cross(theta, n)
 
 

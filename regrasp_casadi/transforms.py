@@ -23,6 +23,7 @@ __all__ = [
     "kabsch",
     "rotation_angle",
     "log_SO3",
+    "log_SO3_batch",
     "exp_so3",
     "interpolate_pose",
 ]
@@ -142,6 +143,32 @@ def log_SO3(R: ArrayLike) -> NDArray[np.float64]:
     j = int(np.argmax(np.diag(aaT)))
     axis = aaT[:, j] / np.linalg.norm(aaT[:, j])
     return theta * (-axis if axis @ w < 0.0 else axis)
+
+
+def log_SO3_batch(R: ArrayLike) -> NDArray[np.float64]:
+    """Rotation vectors (k, 3), rad, of rotations (k, 3, 3): `log_SO3` of each, vectorised (the same
+    formulas: θ = atan2(‖w‖ / 2, (tr R − 1) / 2) with w = vee(R − Rᵀ); the axis from w where
+    cos θ ≥ 0, from the symmetric part beyond π/2)."""
+    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
+    w = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
+    sin_theta = 0.5 * np.sqrt(np.einsum("ij,ij->i", w, w))
+    cos_theta = 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)
+    theta = np.arctan2(sin_theta, cos_theta)
+    turning = sin_theta > 0.0
+    out = 0.5 * w
+    out[turning] *= (theta[turning] / sin_theta[turning])[:, None]
+    wide = cos_theta < 0.0
+    if np.any(wide):
+        Rw, cw = R[wide], cos_theta[wide]
+        sym = 0.5 * (Rw + np.transpose(Rw, (0, 2, 1))) - cw[:, None, None] * np.eye(3)
+        aaT = sym / (1.0 - cw)[:, None, None]  # axis · axisᵀ
+        j = np.argmax(np.diagonal(aaT, axis1=1, axis2=2), axis=1)
+        axis = aaT[np.arange(len(j)), :, j]
+        axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+        flip = np.einsum("ij,ij->i", axis, w[wide]) < 0.0
+        axis[flip] *= -1.0
+        out[wide] = theta[wide][:, None] * axis
+    return out
 
 
 def interpolate_pose(T_a: ArrayLike, T_b: ArrayLike, s: float) -> NDArray[np.float64]:

@@ -20,6 +20,7 @@ from regrasp_casadi.transforms import (
     inv_T,
     kabsch,
     log_SO3,
+    log_SO3_batch,
     make_T,
     rot_axis_angle,
     rotation_angle,
@@ -89,6 +90,28 @@ def test_exp_of_log_is_the_rotation_near_pi(gap):
         assert np.linalg.norm(w) <= np.pi + 1e-12
         worst = max(worst, float(np.max(np.abs(exp_so3(w) - R))))
     assert worst <= 1e-14
+
+
+@PROPERTY
+@given(st.lists(_rotvecs(), min_size=1, max_size=6))
+def test_log_batch_is_scipys_rotation_vector_below_pi(ws):
+    """Every row is scipy's rotation vector of its matrix (angles in [0, π − 1e-3]: unique), on both sides
+    of π/2 where the axis comes from the skew or the symmetric part."""
+    R = Rotation.from_rotvec(np.array(ws)).as_matrix()
+    np.testing.assert_allclose(log_SO3_batch(R), Rotation.from_matrix(R).as_rotvec(), atol=1e-9)
+
+
+def test_log_batch_near_pi_and_identity_gives_back_the_rotation():
+    """At angles within 1e-12 of π and of 0 (and exactly 0), exp of each row is its matrix to rounding."""
+    rng = np.random.default_rng(8)
+    axes = rng.normal(size=(40, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.concatenate([np.pi - np.array([1e-12, 1e-9, 1e-6, 0.0]), [1e-12, 1e-7, 0.0, np.pi / 2]])
+    R = Rotation.from_rotvec(np.repeat(axes, len(angles), axis=0) * np.tile(angles, len(axes))[:, None]
+                             ).as_matrix()
+    w = log_SO3_batch(R)
+    assert np.all(np.linalg.norm(w, axis=1) <= np.pi + 1e-12)
+    assert max(float(np.max(np.abs(exp_so3(wi) - Ri))) for wi, Ri in zip(w, R, strict=True)) <= 1e-14
 
 
 @PROPERTY
