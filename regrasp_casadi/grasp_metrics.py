@@ -68,10 +68,8 @@ def tip_frames(hand, q: ArrayLike, T_palm_object: ArrayLike
     the object frame: tip-sphere centres (m, 3), m, and tip-link orientations R_object_tip (m, 3, 3), in
     `hand.fingers` order."""
     T = np.asarray(T_palm_object, dtype=float)
-    fk = hand.fk(np.asarray(q, dtype=float))
     p = (np.asarray(hand.tip_positions(q), dtype=float).reshape(-1, 3) - T[:3, 3]) @ T[:3, :3]
-    R = np.stack([T[:3, :3].T @ fk[hand.tip_links[f]][:3, :3] for f in hand.fingers])
-    return p, R
+    return p, T[:3, :3].T @ hand.tip_rotations(q)
 
 
 def rolling_displacement(R_object_tips_a: ArrayLike, R_object_tips_b: ArrayLike, normals_object: ArrayLike,

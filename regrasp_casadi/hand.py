@@ -392,6 +392,13 @@ class Hand:
         return self._q_function(("jac", finger), _function_name("J_tip", finger), lambda: {
             "J_palm_tip": ca.jacobian(self._center_expr(self._tip_sphere[finger]), self._q)})
 
+    def tip_rotations_function(self) -> ca.Function:
+        """``R_tips``: q (n,) -> R_palm_tiplinks (3, 3m), the tip links' rotations side by side, in
+        ``fingers`` order."""
+        links = [self.tip_links[f] for f in self.fingers]
+        return self._q_function(("tip_rotations",), "R_tips", lambda: {
+            "R_palm_tiplinks": ca.horzcat(*[self._T_palm_link[link][:3, :3] for link in links])})
+
     def link_rotation_function(self, link: str) -> ca.Function:
         """``R_<link>``: q (n,) -> R_palm_link (3, 3)."""
         if link not in self._parent_joint and link != self.root_link:
@@ -498,6 +505,8 @@ class Hand:
 
     # ------------------------------------------------------------------ numeric conveniences
     def _as_q(self, q: ArrayLike) -> NDArray[np.float64]:
+        if type(q) is np.ndarray and q.dtype == np.float64 and q.shape == (self.n_joints,):
+            return q  # the common case, without the conversions below
         q = np.asarray(q, dtype=float).reshape(-1)
         if q.shape[0] != self.n_joints:
             raise ValueError(f"q has {q.shape[0]} entries, the hand has {self.n_joints} joints")
@@ -512,6 +521,11 @@ class Hand:
         """(m, 3) tip contact-sphere centres, palm frame, m, rows in ``fingers`` order."""
         fn = self._fn_cache.get(("tips",)) or self.tip_positions_function()  # (built: no checks again)
         return self._eval(fn, q).T
+
+    def tip_rotations(self, q: ArrayLike) -> NDArray[np.float64]:
+        """(m, 3, 3) R_palm_tiplink of every finger's tip link, in ``fingers`` order."""
+        fn = self._fn_cache.get(("tip_rotations",)) or self.tip_rotations_function()
+        return self._eval(fn, q).reshape(3, -1, 3).transpose(1, 0, 2)
 
     def tip_jacobian(self, q: ArrayLike, finger: str) -> NDArray[np.float64]:
         """(3, n) Jacobian of the tip contact-sphere centre (palm frame) of ``finger`` w.r.t. q."""

@@ -34,6 +34,9 @@ def _compare_with_yourdfpy(hand: Hand, urdf_path: Path) -> tuple[float, float]:
         ref.update_cfg(q)
         T = hand.fk(q)
         assert set(T) == {link.name for link in ref.robot.links}
+        for f, R_palm_tiplink in zip(hand.fingers, hand.tip_rotations(q), strict=True):  # the tips alone
+            R_ref = ref.get_transform(hand.tip_links[f], ref.base_link)[:3, :3]
+            max_r = max(max_r, _rot_err(R_palm_tiplink, R_ref))
         for link, T_palm_link in T.items():
             T_ref = ref.get_transform(link, ref.base_link)
             max_p = max(max_p, float(np.abs(T_palm_link[:3, 3] - T_ref[:3, 3]).max()))
