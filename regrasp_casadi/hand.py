@@ -399,6 +399,11 @@ class Hand:
         return self._q_function(("tip_rotations",), "R_tips", lambda: {
             "R_palm_tiplinks": ca.horzcat(*[self._T_palm_link[link][:3, :3] for link in links])})
 
+    def tips_jacobian_function(self) -> ca.Function:
+        """``J_tips``: q (n,) -> J (3m, n) = d p_palm_tips / d q, rows 3i..3i+2 the tip of ``fingers[i]``."""
+        return self._q_function(("jac_tips",), "J_tips", lambda: {"J_palm_tips": ca.jacobian(
+            ca.vertcat(*[self._center_expr(self._tip_sphere[f]) for f in self.fingers]), self._q)})
+
     def link_rotation_function(self, link: str) -> ca.Function:
         """``R_<link>``: q (n,) -> R_palm_link (3, 3)."""
         if link not in self._parent_joint and link != self.root_link:
@@ -521,6 +526,11 @@ class Hand:
         """(m, 3) tip contact-sphere centres, palm frame, m, rows in ``fingers`` order."""
         fn = self._fn_cache.get(("tips",)) or self.tip_positions_function()  # (built: no checks again)
         return self._eval(fn, q).T
+
+    def tips_jacobian(self, q: ArrayLike) -> NDArray[np.float64]:
+        """(m, 3, n) Jacobians of every tip contact-sphere centre (palm frame) w.r.t. q, ``fingers`` order."""
+        fn = self._fn_cache.get(("jac_tips",)) or self.tips_jacobian_function()
+        return self._eval(fn, q).reshape(len(self.fingers), 3, -1)
 
     def tip_rotations(self, q: ArrayLike) -> NDArray[np.float64]:
         """(m, 3, 3) R_palm_tiplink of every finger's tip link, in ``fingers`` order."""

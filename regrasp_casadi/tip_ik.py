@@ -113,7 +113,7 @@ def tip_ik(hand: Hand, q_start: NDArray, fingers: Sequence[str], p_palm_targets:
     for _ in range(max_iters):
         if err <= IK_CONVERGED:
             break
-        J = np.concatenate([W @ hand.tip_jacobian(q, f)[:, joints] for f in fingers])
+        J = (W @ hand.tips_jacobian(q)[rows][:, :, joints]).reshape(-1, len(joints))
         qj = q[joints]
         dq = _dls_step(J, (e @ W.T).ravel(), q_ref[joints] - qj, qj <= lo + 1e-12, qj >= hi - 1e-12, damping)
         largest = float(np.abs(dq).max())
@@ -174,7 +174,7 @@ def tip_object_ik(hand: Hand, q_start: NDArray, T_start: NDArray, fingers: Seque
             break
         r = P @ T[:3, :3].T  # targets relative to the object's origin, palm frame
         J_obj = np.concatenate([np.hstack([-c * np.eye(3), c_rot * _skew(ri)]) for ri in r])
-        J = np.hstack([np.concatenate([hand.tip_jacobian(q, f)[:, joints] for f in fingers]), J_obj])
+        J = np.hstack([hand.tips_jacobian(q)[rows][:, :, joints].reshape(-1, len(joints)), J_obj])
         qj = q[joints]
         pull = np.concatenate([JOINT_PULL * (q_ref[joints] - qj), (T_ref[:3, 3] - T[:3, 3]) / c,
                                log_SO3(T_ref[:3, :3] @ T[:3, :3].T) / c_rot])

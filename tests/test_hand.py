@@ -239,6 +239,7 @@ def test_tip_jacobian_matches_central_differences(hand, seed):
             k = hand.fingers.index(finger)
             J_fd[:, i] = (hand.tip_positions(q + dq)[k] - hand.tip_positions(q - dq)[k]) / (2 * h)
         np.testing.assert_allclose(J, J_fd, atol=1e-8)
+        np.testing.assert_allclose(hand.tips_jacobian(q)[k], J_fd, atol=1e-8)  # all tips in one call
         other = np.setdiff1d(np.arange(hand.n_joints), hand.finger_joints[finger])
         assert np.all(J[:, other] == 0.0)
 
