@@ -154,3 +154,17 @@ def test_pseudo_normals_match_the_loops_on_faces_edges_and_vertices():
     bary_small = (trimesh.triangles.points_to_barycentric(exact._triangles_mm[tri], c_mm) < 1e-7).sum(axis=1)
     assert (bary_small == 1).sum() > 50 and (bary_small >= 2).sum() > 50  # edges and vertices are tested
     np.testing.assert_array_equal(exact._pseudo_normals(c_mm, tri), _pseudo_normals_loop(exact, c_mm, tri))
+
+
+def test_pickled_copy_gives_the_same_answers():
+    """An `ExactDistance` (and the `ObjectModel` holding it) pickles: the tree is rebuilt on loading and
+    answers as the original, bit for bit."""
+    import pickle
+
+    obj = ObjectModel.box()
+    pts = np.random.default_rng(12).uniform(-0.1, 0.1, size=(200, 3))
+    reference = obj.exact.closest(pts)
+    copy = pickle.loads(pickle.dumps(obj))
+    copy.exact.clear_cache()
+    for got, ref in zip(copy.exact.closest(pts), reference, strict=True):
+        np.testing.assert_array_equal(got, ref)
