@@ -181,6 +181,11 @@ class ExactDistance:
         return out
 
     def surface_normals(self, points: ArrayLike) -> NDArray[np.float64]:
-        """Outward unit normal (n, 3), object frame, of the mesh face closest to each point (n, 3), m."""
-        return np.array(self.mesh.face_normals[self.closest(points)[2]])
+        """Outward unit normal (n, 3), object frame, at the closest point of each point (n, 3), m: its
+        face's normal inside a face, the normalised angle-weighted pseudo-normal of the edge or vertex it
+        lies on (the same whichever of the triangles sharing it the tree names: a contact on an edge,
+        where 81 of the 200 contacts of the benchmark problems lie, got either face's normal before)."""
+        closest, _, tri = self.closest(points)
+        n = self._pseudo_normals(closest * _MM_PER_M, tri)
+        return n / np.linalg.norm(n, axis=1, keepdims=True)
 

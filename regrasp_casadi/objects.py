@@ -555,7 +555,8 @@ class ObjectModel:
         return self.exact.near_signed_distance(points, near)
 
     def surface_normals(self, points: ArrayLike) -> NDArray[np.float64]:
-        """Outward unit normal (n, 3), object frame, of the mesh face closest to each point (n, 3), m."""
+        """Outward unit normal (n, 3), object frame, at the closest point of each point (n, 3), m (the
+        face's, or the edge's or vertex's pseudo-normal: `ExactDistance.surface_normals`)."""
         return self.exact.surface_normals(points)
 
     def sample_surface(self, n: int, seed: int = 0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -168,3 +168,16 @@ def test_pickled_copy_gives_the_same_answers():
     copy.exact.clear_cache()
     for got, ref in zip(copy.exact.closest(pts), reference, strict=True):
         np.testing.assert_array_equal(got, ref)
+
+
+def test_normals_on_a_box_edge_and_corner_are_the_bisectors(box_object):
+    """On an edge of the box (closest point on it), the normal is the bisector of its two faces; at a
+    corner the three faces' mean (equal angles π/2): closed forms, whichever triangle the tree names."""
+    half = np.array([0.025, 0.045, 0.0875])
+    pts = np.array([[0.0, half[1] + 0.01, half[2] + 0.02],  # off the y-z edge, nearer the z face
+                    [half[0] + 0.03, 0.0, -half[2] - 0.01],  # off the x-(−z) edge
+                    half + [0.01, 0.02, 0.03],  # off the corner
+                    [0.0, 0.0, half[2] + 0.01]])  # off the middle of the +z face
+    expected = np.array([[0.0, 1.0, 1.0], [1.0, 0.0, -1.0], [1.0, 1.0, 1.0], [0.0, 0.0, 1.0]])
+    expected /= np.linalg.norm(expected, axis=1, keepdims=True)
+    np.testing.assert_allclose(box_object.surface_normals(pts), expected, atol=1e-12)
