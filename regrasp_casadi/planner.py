@@ -304,8 +304,9 @@ class _Run:
             bad, path = self.unrealisable(res.q, res.T_palm_object)
         if res.success and escape and (pose_distance(res.T_palm_object, goal, self.obj)
                                        >= pose_distance(self.T_palm_object, goal, self.obj)):
-            self.failures.append(f"reposing towards the desired pose at step {len(self.steps)} would not "
-                                 f"bring the object closer; the object stays")
+            way = "" if reach >= 1.0 else f"{reach:g} of the way "
+            self.failures.append(f"reposing {way}towards the desired pose at step {len(self.steps)} would "
+                                 f"not bring the object closer; the object stays")
         elif res.success and not bad:
             self.q, self.T_palm_object = res.q, res.T_palm_object
             self.add_step("repose", None, res.status, res.solve_time, self.grasp_certificate(), path)
@@ -391,7 +392,7 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
         run.stalled = watch.stalled
         run.gait_round()
         if run.largest_error() > options.zeta:
-            run.repose(escape=watch.escape)
+            _repose(run, watch.escape)
         run.iterations += 1
         run.errors.append(float(np.mean(run.steps[-1].contact_error)))
         if progress is not None:
@@ -436,6 +437,16 @@ class _Fallback:
         note = (f"{self.outcome.note + '; ' if self.outcome.note else ''}re-gaiting towards the desired pose "
                 f"ended {status.replace('_', ' ')} after {tried} iterations; the plan ends before it")
         return replace(self.outcome, note=note)
+
+
+def _repose(run: _Run, escape: bool) -> None:
+    """The iteration's reposing (`_Run.repose`); a stall escape refused for the whole way to the desired
+    pose is asked again for part of it (`_REGAIT_REACH`), as `_regait` does."""
+    n_steps = len(run.steps)
+    for reach in _REGAIT_REACH if escape else (1.0,):
+        run.repose(escape=escape, reach=reach)
+        if len(run.steps) > n_steps:
+            return
 
 
 def _regait(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
