@@ -27,6 +27,7 @@ from regrasp_casadi.hand_orientation import pinned_opposer_hint
 from regrasp_casadi.holding import STABILITY_KINDS, Holding
 from regrasp_casadi.in_grasp import InGraspNLP, svd_target, trust_region
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
+from regrasp_casadi.long_gait import long_gait
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions
 from regrasp_casadi.solver import NLPCache
@@ -265,10 +266,13 @@ class _Run:
                                      f"exact checks (surface error {res.surface_error * 1e3:.3f} mm, "
                                      f"clearance {res.min_clearance * 1e3:.3f} mm; IPOPT: {res.status})")
                 _log.debug("%s; the finger stays", self.failures[-1])
-                continue
-            moved = np.linalg.norm(self.hand.tip_positions(res.q)[r] - self.hand.tip_positions(self.q)[r])
-            if moved >= 1e-5:
-                accept_gait(self, finger, res)  # unless its path fails its checks
+            else:
+                moved = np.linalg.norm(self.hand.tip_positions(res.q)[r] - self.hand.tip_positions(self.q)[r])
+                if moved >= 1e-5:
+                    accept_gait(self, finger, res)  # unless its path fails its checks
+            o = self.options
+            if self.stalled >= o.stall_escape and self.steps[-1].contact_error[r] > o.zeta:
+                long_gait(self, finger)  # from its IK at the goal: out of OPT1's local minimum
 
     def _most_stable_gait(self, todo: list[str]) -> str:
         """Remove and return the finger of `todo` whose lift leaves the best-held grasp."""
