@@ -247,8 +247,9 @@ class _Run:
     # ----------------------------------------------------------------------- Algorithm 1, named steps
     def gait_round(self) -> None:
         """One finger gait (OPT1) for each finger of the gait pattern not yet at its goal, in the
-        pattern's order or the stability order; a rejected gait leaves the finger where it is. With
-        stability on, only certified moves (`certified_round.certified_round`)."""
+        pattern's order or the stability order; a rejected gait leaves the finger where it is; once the
+        plan has made no progress for `stall_escape` iterations, a finger still beyond ζ also tries
+        `long_gait`. With stability on, only certified moves (`certified_round.certified_round`)."""
         if self.holding is not None:
             certified_round(self)
             return
