@@ -229,11 +229,12 @@ class FingerGaitNLP:
         return np.concatenate([np.asarray(sd_tip).ravel(), np.asarray(sd_l).ravel()])
 
     def solve(self, q: ArrayLike, T_palm_object: ArrayLike, p_object_tip_goal: ArrayLike,
-              eta: float | None = None) -> FingerGaitResult:
+              eta: float | None = None, q_init: ArrayLike | None = None) -> FingerGaitResult:
         """Move the finger's tip towards `p_object_tip_goal` (3,) (goal tip-sphere centre, object frame, m)
-        from the grasp (`q` (n,) rad, `T_palm_object` (4, 4)); never raises on a failed solve. `eta`: a
-        shorter step bound than the options' η for this solve, m (a bound, not a rebuild: e.g. a
-        shortened gait or one step of a slide)."""
+        from the grasp (`q` (n,) rad, `T_palm_object` (4, 4)); never raises on a failed solve. `eta`: another
+        step bound than the options' η for this solve, m (a bound, not a rebuild: e.g. a shortened gait or
+        one step of a slide). `q_init`: (n,) rad, the first iterate of the finger's joints (default: q's;
+        e.g. the finger's IK at its goal, `long_gait`); the constraints are q's either way."""
         o = self.options if eta is None else replace(self.options, eta=float(eta))
         q = np.asarray(q, dtype=float).copy()
         T = np.asarray(T_palm_object, dtype=float)
@@ -277,9 +278,13 @@ class FingerGaitNLP:
             lbg = bounds.lbg.copy()
             lbg[1:1 + self._k] = _MM * _solver.no_worse(o.beta, start.exact[1:] - self._radii)
             bounds = replace(bounds, lbg=lbg)
+        x_first, first = x0, start  # the first iterate and its evaluation (judged as the result if unsolved)
+        if q_init is not None:
+            x_first = np.asarray(q_init, dtype=float)[self._idx]
+            first = self._evaluate(x_first, params(np.zeros(1 + self._k), planes))
         corr = _solver.correct_offsets(solve_with, evaluate,
                                        done, new_offsets, offsets=(start.exact - start.smooth, planes),
-                                       x=x0, evaluation=start, max_solves=o.max_corrections + 1,
+                                       x=x_first, evaluation=first, max_solves=o.max_corrections + 1,
                                        accept=_solver.clipped_if_finite(self._bounds))
         if not corr.converged:
             corr = self._polished(corr, iterates, q=q, T=T, c0=c0, c_goal=c_goal,

@@ -27,6 +27,7 @@ from regrasp_casadi.hand_orientation import pinned_opposer_hint
 from regrasp_casadi.holding import STABILITY_KINDS, Holding
 from regrasp_casadi.in_grasp import InGraspNLP, svd_target, trust_region
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
+from regrasp_casadi.long_gait import long_gait
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions
 from regrasp_casadi.solver import NLPCache
@@ -246,8 +247,9 @@ class _Run:
     # ----------------------------------------------------------------------- Algorithm 1, named steps
     def gait_round(self) -> None:
         """One finger gait (OPT1) for each finger of the gait pattern not yet at its goal, in the
-        pattern's order or the stability order; a rejected gait leaves the finger where it is. With
-        stability on, only certified moves (`certified_round.certified_round`)."""
+        pattern's order or the stability order; a rejected gait leaves the finger where it is; once the
+        plan has made no progress for `stall_escape` iterations, a finger still beyond ζ also tries
+        `long_gait`. With stability on, only certified moves (`certified_round.certified_round`)."""
         if self.holding is not None:
             certified_round(self)
             return
@@ -265,10 +267,13 @@ class _Run:
                                      f"exact checks (surface error {res.surface_error * 1e3:.3f} mm, "
                                      f"clearance {res.min_clearance * 1e3:.3f} mm; IPOPT: {res.status})")
                 _log.debug("%s; the finger stays", self.failures[-1])
-                continue
-            moved = np.linalg.norm(self.hand.tip_positions(res.q)[r] - self.hand.tip_positions(self.q)[r])
-            if moved >= 1e-5:
-                accept_gait(self, finger, res)  # unless its path fails its checks
+            else:
+                moved = np.linalg.norm(self.hand.tip_positions(res.q)[r] - self.hand.tip_positions(self.q)[r])
+                if moved >= 1e-5:
+                    accept_gait(self, finger, res)  # unless its path fails its checks
+            o = self.options
+            if self.stalled >= o.stall_escape and self.steps[-1].contact_error[r] > o.zeta:
+                long_gait(self, finger)  # from its IK at the goal: out of OPT1's local minimum
 
     def _most_stable_gait(self, todo: list[str]) -> str:
         """Remove and return the finger of `todo` whose lift leaves the best-held grasp."""
@@ -304,8 +309,9 @@ class _Run:
             bad, path = self.unrealisable(res.q, res.T_palm_object)
         if res.success and escape and (pose_distance(res.T_palm_object, goal, self.obj)
                                        >= pose_distance(self.T_palm_object, goal, self.obj)):
-            self.failures.append(f"reposing towards the desired pose at step {len(self.steps)} would not "
-                                 f"bring the object closer; the object stays")
+            way = "" if reach >= 1.0 else f"{reach:g} of the way "
+            self.failures.append(f"reposing {way}towards the desired pose at step {len(self.steps)} would "
+                                 f"not bring the object closer; the object stays")
         elif res.success and not bad:
             self.q, self.T_palm_object = res.q, res.T_palm_object
             self.add_step("repose", None, res.status, res.solve_time, self.grasp_certificate(), path)
@@ -391,7 +397,7 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
         run.stalled = watch.stalled
         run.gait_round()
         if run.largest_error() > options.zeta:
-            run.repose(escape=watch.escape)
+            _repose(run, watch.escape)
         run.iterations += 1
         run.errors.append(float(np.mean(run.steps[-1].contact_error)))
         if progress is not None:
@@ -436,6 +442,16 @@ class _Fallback:
         note = (f"{self.outcome.note + '; ' if self.outcome.note else ''}re-gaiting towards the desired pose "
                 f"ended {status.replace('_', ' ')} after {tried} iterations; the plan ends before it")
         return replace(self.outcome, note=note)
+
+
+def _repose(run: _Run, escape: bool) -> None:
+    """The iteration's reposing (`_Run.repose`); a stall escape refused for the whole way to the desired
+    pose is asked again for part of it (`_REGAIT_REACH`), as `_regait` does."""
+    n_steps = len(run.steps)
+    for reach in _REGAIT_REACH if escape else (1.0,):
+        run.repose(escape=escape, reach=reach)
+        if len(run.steps) > n_steps:
+            return
 
 
 def _regait(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:

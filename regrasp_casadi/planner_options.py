@@ -90,7 +90,9 @@ class PlannerOptions:
     moves a tip up to η = 10 mm: less than 1 mm means the fingers are blocked where they are)."""
     stall_escape: int = 2
     """After this many iterations without progress, reposings move towards the desired object pose
-    (an addition to the paper: the desired grasp is feasible there, so its contacts become reachable)."""
+    (an addition to the paper: the desired grasp is feasible there, so its contacts become reachable;
+    refused for the whole way, for 1/2 and 1/4 of it), and each finger still beyond ζ also tries a gait
+    started on the joint-space way to its goal (`long_gait`: out of OPT1's local minimum at an edge)."""
     stall_limit: int = 10
     """After this many iterations without progress the plan stops with status "stalled"."""
     skip_tol: float = 1e-4

@@ -22,8 +22,9 @@ distance for the checks.
   joint-space parts (exactly the interpolation rule; a transit is split so from the start).
 * **Checks** at every knot (no point of the hand moves more than `max_point_step` between two, so a
   distance between two knots is within half of it of one of theirs): joint limits, the moving finger's
-  spheres ≥ β from the object and ≥ `self_clearance` from the other fingers and the palm in a transit
-  (`Hand.self_collision_pairs`), not in the object nor in another finger during lift-off and
+  spheres ≥ β from the object (a sphere closer than β at the transit's lifted ends, e.g. a lift held
+  short by the joint limits, no worse than there) and ≥ `self_clearance` from the other fingers and the palm
+  in a transit (`Hand.self_collision_pairs`), not in the object nor in another finger during lift-off and
   touch-down (a lift is lowered to 3/5 or 2/5, or leans 25°/40° away from the closest other finger at
   any of the three heights, when that keeps it clear of the others); in a reposing the tips within
   `surface_tol` of the surface, the contacts within `max_slip` of step A's, every non-tip sphere (palm
@@ -424,7 +425,11 @@ def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDAr
              also: NDArray) -> tuple[NDArray[np.float64], float, float, str, NDArray[np.float64]]:
     """Transit knots (k, n) from q_a to q_b, linear in joint space, directly or through one via point
     raised by `via_heights` along n_mid (palm frame); the first whose finger spheres keep ≥ β from the
-    object and ≥ `self_clearance` from the other fingers, else the one with the largest margin.
+    object and ≥ `self_clearance` from the other fingers, else the one with the largest margin. A sphere
+    already closer than β at the lifted end q_a or q_b (a lift the joint limits or the other fingers held
+    short, a link near the object in the grasp) keeps no worse than it is there: the transit starts and
+    ends there whatever its way (flat tool, index touch-down 0.70 mm off the tool: refused at every
+    iteration before), as OPT1 holds such a link no worse than its start.
 
     The clearance of the finger's spheres at the knots `also` (j, n) is computed with the first attempt
     (one query). Returns (knots, min clearance m, min distance to the other fingers m, why, clearance
@@ -435,7 +440,7 @@ def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDAr
     r = hand.fingers.index(finger)
     p_mid = 0.5 * (hand.tip_positions(q_a)[r] + hand.tip_positions(q_b)[r])
     q_mid = 0.5 * (q_a + q_b)
-    best: tuple[NDArray, float, str, float, float] | None = None
+    best: tuple[NDArray, float, str, float, float, float] | None = None
     clear_also = np.zeros((0, len(spheres)))
     for attempt, height in enumerate((None, *o.via_heights)):
         waypoints = [q_a, q_b]
@@ -452,16 +457,20 @@ def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDAr
         if first:
             clear_also = clear_all[len(Q):]
         clear, self_clear = float(np.min(clear_all[: len(Q)])), float(np.min(ctx.self_distance(Q, finger)))
+        if first:  # per sphere: β, or no worse than at the lifted ends where it is closer there
+            floor = np.minimum(o.beta, np.min(clear_all[[0, len(Q) - 1]], axis=0)) - 1e-9
         why = "; ".join(w for _, w in legs if w)
-        margin = min(clear - o.beta, self_clear - (o.self_clearance or 0.0))
+        dip = float(np.min(clear_all[: len(Q)] - floor))  # < 0: a sphere below its floor
+        margin = min(dip, self_clear - (o.self_clearance or 0.0))
         if best is None or margin > best[1]:
-            best = (Q, margin, why, clear, self_clear)
+            best = (Q, margin, why, clear, self_clear, dip)
         if margin >= 0.0:
             break
     assert best is not None
-    Q, margin, why, clear, self_clear = best
-    if clear < o.beta:
-        why += f"; transit clearance {clear * 1e3:.3f} mm < β = {o.beta * 1e3:.3f} mm"
+    Q, margin, why, clear, self_clear, dip = best
+    if dip < 0.0:
+        why += (f"; transit clearance {clear * 1e3:.3f} mm < β = {o.beta * 1e3:.3f} mm (or a sphere "
+                f"{-dip * 1e3:.3f} mm closer than at the transit's ends, where it is closer than β)")
     if o.self_clearance is not None and self_clear < o.self_clearance:
         why += f"; transit {self_clear * 1e3:.3f} mm from another finger < {o.self_clearance * 1e3:.3f} mm"
     return Q, clear, self_clear, why.strip("; "), clear_also

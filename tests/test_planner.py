@@ -41,10 +41,6 @@ KNOWN_MOTION_FAILURES: dict[tuple[str, str], str] = {}
 since the object follows the hand in reposings (cylinder_slide svd: `test_repose_trajectory`) and
 lifts also lean at 2/5 height (bottle_regrasp sd's thumb touch-down: `test_gait_touch_down`)."""
 PAPER_STOPS = {
-    ("bottle_regrasp", "sd"): "since OPT2 leaves the clearance constraints' curvature out of its Hessian "
-                              "(2026-12-03) the plan ends in 'solver_failure' at step 36 with the thumb "
-                              "15 mm from its goal: its tip cuts into the bottle on the straight line "
-                              "there, and every gait's or reposing's path fails its checks (measured)",
     ("box_shift", "sd"): "since the tips roll (stop 23) the reposing at step 18 has a path whose IK "
                          "jumps (knots 15 mm apart) and slides a tip 1.9 mm: refused, the plan ends in "
                          "'solver_failure' (since OPT1 holds a link closer than β no worse: 'stalled' "

@@ -1,0 +1,75 @@
+"""A stalled finger's gait started along the joint-space way to its goal (`long_gait`): the ring of the
+generated mug pair of seed 2, stuck at an edge of the mug with the object at the desired pose (the paper
+planner's sd plan stalled there before), gets out where OPT1 from its own joints does not."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from regrasp_casadi.finger_gait import FingerGaitNLP
+from regrasp_casadi.planner import PlannerOptions, plan_regrasp
+from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.tip_ik import tip_ik
+from regrasp_casadi.verify import verify
+
+STUCK = Path(__file__).resolve().parent / "data" / "mug_ring_stuck_at_edge.yaml"
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return RegraspProblem.load(STUCK)
+
+
+def _exact_contact_error(problem, q, T, r):
+    """Distance (m) of finger r's exact contact (trimesh's closest point of its tip centre) to its goal."""
+    tip = (problem.hand.tip_positions(q)[r] - T[:3, 3]) @ T[:3, :3]
+    contact = trimesh.proximity.closest_point(problem.obj.mesh, tip[None])[0][0]
+    return float(np.linalg.norm(contact - problem.grasp_goal.contacts_object[r]))
+
+
+def test_the_ring_gets_out_of_opt1s_local_minimum(problem):
+    hand, obj, g0 = problem.hand, problem.obj, problem.grasp0
+    r, T = hand.fingers.index("ring"), g0.T_palm_object
+    goal_tip = problem.grasp_goal.tip_centers_object[r]
+    options = PlannerOptions().finger_gait
+    nlp = FingerGaitNLP(hand, obj, "ring", options)
+    before = _exact_contact_error(problem, g0.q, T, r)
+    assert before > 0.015  # 17 mm: the stalled plan's ring
+
+    stuck = nlp.solve(g0.q, T, goal_tip)  # from its own joints: no way on
+    assert _exact_contact_error(problem, stuck.q, T, r) > before - 5e-4
+
+    way = float(np.linalg.norm(goal_tip - g0.tip_centers_object[r]))
+    q_goal, e = tip_ik(hand, g0.q, ["ring"], (T[:3, :3] @ goal_tip + T[:3, 3])[None],
+                       np.asarray(hand.finger_joints["ring"]), g0.q)
+    assert np.linalg.norm(e) < 1e-3  # the goal is within reach at this pose
+    q_init = g0.q + min(1.0, options.eta / way) * (q_goal - g0.q)
+    res = nlp.solve(g0.q, T, goal_tip, q_init=q_init)
+    assert res.success
+    assert _exact_contact_error(problem, res.q, T, r) < before - 0.003  # millimetres closer
+    # OPT1's constraints, by trimesh's exact distances: the tip on the surface, the links outside, ≤ η
+    def to_object(p_palm):
+        return (np.reshape(p_palm, (-1, 3)) - T[:3, 3]) @ T[:3, :3]
+
+    inside = trimesh.proximity.signed_distance  # > 0 inside the mesh
+    tip_depth = inside(obj.mesh, to_object(hand.tip_positions(res.q)[r]))[0]
+    assert abs(-tip_depth - hand.tip_radius) < 2e-4
+    link_depth = inside(obj.mesh, to_object(hand.sphere_centers(res.q, "ring")))
+    assert np.all(-link_depth - hand.sphere_radii("ring") > 0.0)
+    assert np.linalg.norm(hand.tip_positions(res.q)[r] - hand.tip_positions(g0.q)[r]) <= options.eta + 1e-6
+    others = np.setdiff1d(np.arange(hand.n_joints), hand.finger_joints["ring"])
+    assert np.array_equal(res.q[others], g0.q[others])
+
+
+@pytest.mark.slow  # a plan of the mug: in the slow run
+def test_the_stalled_plan_now_reaches_the_ring_goal(problem):
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="sd", stability="none")
+    assert plan.status == "converged", plan.status_detail
+    assert verify(plan, problem.hand, problem.obj).ok
+    last = plan.steps[-1]
+    r = problem.hand.fingers.index("ring")
+    assert _exact_contact_error(problem, last.q, last.T_palm_object, r) <= plan.options["zeta"]
