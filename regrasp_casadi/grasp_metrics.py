@@ -29,8 +29,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from regrasp_casadi.transforms import log_SO3_batch
-
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.objects import ObjectModel
 
@@ -77,6 +75,8 @@ def rolling_displacement(R_object_tips_a: ArrayLike, R_object_tips_b: ArrayLike,
     """(m, 3) where each spherical tip's centre goes, object frame, m, when it turns from R_a to R_b
     (m, 3, 3), object frame, rolling without slipping over a surface of outward normals (m, 3) (made
     unit): ρ θ × n, θ the rotation vector of R_b R_aᵀ."""
+    from regrasp_casadi.transforms import log_SO3_batch  # (transforms loads CasADi: plan.py must not)
+
     R_a = np.asarray(R_object_tips_a, dtype=float).reshape(-1, 3, 3)
     R_b = np.asarray(R_object_tips_b, dtype=float).reshape(-1, 3, 3)
     n = np.asarray(normals_object, dtype=float).reshape(-1, 3)
