@@ -65,12 +65,17 @@ def function_name(*parts: str) -> str:
 
     CasADi accepts a letter followed by letters, digits and single underscores: every run of other
     characters (non-ASCII letters included) becomes one "_", leading/trailing ones are dropped, and a
-    name that would not start with a letter gets an "f" in front.
+    name that would not start with a letter, or that CasADi reserves ("null", "jac", "hess"), gets an "f"
+    in front.
     """
     name = re.sub(r"[^A-Za-z0-9]+", "_", "_".join(parts)).strip("_")
-    if not name[:1].isalpha():
+    if not name[:1].isalpha() or name in _RESERVED_NAMES:
         name = "f" + name
     return name
+
+
+_RESERVED_NAMES = frozenset({"null", "jac", "hess"})
+"""Names CasADi refuses for a Function although they are valid identifiers (found by hypothesis)."""
 
 
 # ---------------------------------------------------------------------------- the core

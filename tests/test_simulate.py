@@ -295,8 +295,10 @@ def test_shipped_plan_is_followed_with_gravity_off(box_problem, box_shift_plan):
 def test_force_closure_part_of_a_shipped_plan_is_followed(box_problem, box_shift_plan):
     """The longest run of box_shift's plan whose gaits all keep force closure (ε > 0, `stability`),
     executed from its first step with gravity off: every step-end centre-of-mass deviation within 3 mm.
-    Measured (steps 11-24): 1.5 mm and 6.6 deg; the rotation is not asserted (three point contacts of small
-    margin ε ≈ 0.01-0.06 let the box turn a few degrees per gait)."""
+    Measured: steps 11-24 before 2026-12-03, 1.5 mm and 6.6 deg; since libigl's exact distance and the
+    edge normals the plan's longest such runs are 5 steps (1-6, 6-11, 11-16), steps 1-6: 0.09 mm and
+    0.12 deg. The rotation is not asserted (three point contacts of small margin ε ≈ 0.01-0.06 let the
+    box turn a few degrees per gait)."""
     from regrasp_casadi.stability import holding_quality, torque_reference
 
     plan, hand, obj = box_shift_plan, box_problem.hand, box_problem.obj
@@ -317,7 +319,7 @@ def test_force_closure_part_of_a_shipped_plan_is_followed(box_problem, box_shift
             runs.append((start, i))
             start = i
     a, b = max(runs, key=lambda r: r[1] - r[0])
-    assert b - a >= 6, runs
+    assert b - a >= 5, runs
     steps = list(plan.steps[a:b])
     steps[0] = dataclasses.replace(steps[0], kind="initial", finger=None)
     report = simulate(dataclasses.replace(plan, steps=tuple(steps)), hand, obj, SimOptions())
