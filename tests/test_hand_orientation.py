@@ -42,6 +42,7 @@ def test_supporting_gravity_presses_the_box_onto_the_fingers(box_shift):
         supporting_gravity(g0, g=0.0)
 
 
+@pytest.mark.slow  # 24 s in the default run (2026-12-03): over the suite's 10-minute budget
 def test_supporting_gravity_lets_the_certified_planner_move_the_thumb(box_shift):
     """With force closure the thumb cannot leave its contact (it alone opposes the other three); with the
     gravity certificate and the supporting gravity, the plan converges, `verify` (its own tolerances and
