@@ -61,6 +61,7 @@ def test_serial_is_plan_regrasp(serial):
     assert all(r.verified for r in serial)  # converged or not, every plan verifies
 
 
+@pytest.mark.slow  # 15 s in the default run (2026-12-03): the suite over its 10-minute budget
 def test_process_backend_is_serial(serial):
     """Two worker processes, the problems given once as a loaded object and once as a path."""
     problems = [RegraspProblem.load(PROBLEMS[0]), PROBLEMS[1]]
@@ -92,6 +93,7 @@ def test_an_exception_is_recorded_and_the_others_plan(tmp_path):
     assert good.error is None and good.plan is not None and good.verified and good.method == "svd"
 
 
+@pytest.mark.slow  # 13 s in the default run (2026-12-03): the suite over its 10-minute budget
 def test_nlps_are_reused_across_problems_of_one_object(monkeypatch):
     """box_rotate and box_shift hold the same box: the second problem builds no NLP in the worker."""
     from regrasp_casadi.planner import clear_nlp_cache

@@ -147,6 +147,7 @@ plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", max_iters=3).save
 """
 
 
+@pytest.mark.slow  # 13 s in the default run (2026-12-03): the suite over its 10-minute budget
 def test_same_plan_in_a_fresh_process(box, tmp_path):
     """The plan depends on its input only: not on the NLP cache and warm starts of this process (which
     has planned before), nor on hash randomisation."""

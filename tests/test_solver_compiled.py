@@ -117,6 +117,7 @@ def test_opt1_compiled_matches_interpreted_and_is_cached(jit_cache, monkeypatch,
 
 
 @pytest.mark.skipif(compiled.find_compiler() is None, reason="no C compiler")
+@pytest.mark.slow  # 10 s in the default run (2026-12-03): the suite over its 10-minute budget
 def test_opt2_is_one_nlp_per_hand(monkeypatch):
     """OPT2 does not depend on the object (ℓ and the local planes are parameters, an object of fewer
     convex pieces repeats its nearest): the box (one piece) and the bottle (several) give one compiled
