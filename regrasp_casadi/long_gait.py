@@ -38,9 +38,11 @@ def long_gait(run: _Run, finger: str) -> bool:
     r, hand, T = run.fingers.index(finger), run.hand, run.T_palm_object
     goal_object = run.goal_tips[r]
     way = float(np.linalg.norm(goal_object - run.tips_object()[r]))
+    if way <= 0.0:
+        return False
     joints = np.asarray(hand.finger_joints[finger])
     q_goal, e = tip_ik(hand, run.q, [finger], (T[:3, :3] @ goal_object + T[:3, 3])[None], joints, run.q)
-    if float(np.linalg.norm(e)) > REACH_TOL or way <= 0.0:
+    if float(np.linalg.norm(e)) > REACH_TOL:
         return False
     q_init = run.q + min(1.0, run.options.finger_gait.eta / way) * (q_goal - run.q)  # about η on the way
     res = run.gait_nlps[finger].solve(run.q, T, goal_object, q_init=q_init)
