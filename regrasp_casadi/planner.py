@@ -304,11 +304,12 @@ class _Run:
         self.timing["opt2"] += res.solve_time
         self.solves["opt2"] += 1
         goal = self.T_palm_object_goal
-        bad, path = (self.uncertified(res.q, res.T_palm_object) if res.success else ""), None
-        if res.success and not bad:
+        farther = escape and res.success and (pose_distance(res.T_palm_object, goal, self.obj)
+                                              >= pose_distance(self.T_palm_object, goal, self.obj))
+        bad, path = (self.uncertified(res.q, res.T_palm_object) if res.success and not farther else ""), None
+        if res.success and not farther and not bad:
             bad, path = self.unrealisable(res.q, res.T_palm_object)
-        if res.success and escape and (pose_distance(res.T_palm_object, goal, self.obj)
-                                       >= pose_distance(self.T_palm_object, goal, self.obj)):
+        if farther:  # refused whatever its path: not computed
             way = "" if reach >= 1.0 else f"{reach:g} of the way "
             self.failures.append(f"reposing {way}towards the desired pose at step {len(self.steps)} would "
                                  f"not bring the object closer; the object stays")

@@ -152,6 +152,7 @@ def backend_options(options: SolverOptions) -> dict:
     o = options
     opts: dict = {
         "print_time": False,
+        "calc_lam_p": False,  # the parameters' multipliers: unused, an extra ∂g/∂p per solve (3-5 %)
         "ipopt.print_level": o.print_level,
         "ipopt.sb": "yes",
         "ipopt.max_iter": o.max_iter,
