@@ -201,7 +201,7 @@ def lagrangian_hessian(nlp: dict, curved_rows: Sequence[int]) -> ca.Function:
     lagrangian = lam_f * f + (ca.dot(lam_g[rows], g[rows]) if rows else 0)
     hess = ca.triu(ca.hessian(lagrangian, x)[0])
     return ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [hess], ["x", "p", "lam_f", "lam_g"],
-                       ["triu_hess_gamma_x_x"])
+                       ["triu_hess_gamma_x_x"], {"cse": True})  # OPT2's: 9 % fewer instructions
 
 
 def build_solver(name: str, nlp: dict, options: SolverOptions | None = None,
