@@ -6,10 +6,13 @@ calls its gait paths and `slide_trajectory.slide_path` for the other kinds; the 
 
 Knots, s ∈ [0, 1]: the object pose T(s) is interpolated from step A's to step B's (translation linear,
 rotation geodesic: `transforms.interpolate_pose`); the tip centres, object frame, go where the tips
-roll to (`_rolling_tips`: first on the chord from A's to B's, then `ROLL_PASSES` more IK passes with
-the targets moved to the roll of the tips as the knot's joints turn them) and are mapped by T(s); the
-joints come from the IK of `trajectory` for all fingers (damped least squares within the joint limits,
-warm started from the neighbouring knot, pulled towards the joint-space interpolation of A and B).
+roll to as the knot's joints turn them (`_rolling_tips`: A's centres + ρ θ × n + s × the slide OPT2 left
+between A and B) and are mapped by T(s); the joints come from `rolling_ik.rolling_tip_ik` for all
+fingers (damped least squares on the rolling-contact Jacobian, the targets moving with the joints,
+within the joint limits, warm started from the neighbouring knot, pulled towards the joint-space
+interpolation of A and B). It replaced (issue 12) a tip-centre IK whose targets were moved twice to
+where the last solution rolled them: at a finger stretched to the edge of its reach (tip-centre Jacobian
+of rank 2) that picked another branch of the solutions from knot to knot.
 
 **The object follows the hand.** Where that IK leaves a tip more than `FOLLOW_TOL` from its target (a
 finger held at two joint limits keeps only two free joints and cannot follow an arbitrary pose path:
@@ -32,12 +35,14 @@ knots), "max_pose_correction" (how far the object's following moved a tip's targ
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.grasp_metrics import path_tip_slip, rolling_displacement, tip_frames
+from regrasp_casadi.rolling_ik import Rolling, rolling_tip_ik
 from regrasp_casadi.stability import contact_normals
 from regrasp_casadi.tip_ik import tip_object_ik
 from regrasp_casadi.transforms import interpolate_pose, inv_T, transform_points
@@ -52,10 +57,6 @@ __all__ = ["repose_path", "FOLLOW_TOL"]
 COARSE_SPACING = 0.016
 """A reposing's first IK knots: one per this much motion of the hand's points, m (then bisection)."""
 
-ROLL_PASSES = 2
-"""IK passes per knot that move the tips' targets to where the tips roll to (`_rolling_tips`) after the
-first, which holds them on the chord between the step's ends."""
-
 FOLLOW_TOL = 1e-5
 """A knot whose tips the joints alone leave farther than this from their targets (m) is solved with the
 object's pose free (`tip_ik.tip_object_ik`)."""
@@ -63,14 +64,14 @@ object's pose free (`tip_ik.tip_object_ik`)."""
 
 def repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     """The path of reposing (or final) step b from step a (see the module docstring)."""
-    from regrasp_casadi.trajectory import _held_joints, _ik, _knots, _limit_problems, _timed
+    from regrasp_casadi.trajectory import _held_joints, _knots, _limit_problems, _timed
 
     hand, o = ctx.hand, ctx.options
     q_a, q_b = np.asarray(a.q, dtype=float), np.asarray(b.q, dtype=float)
     T_a, T_b = np.asarray(a.T_palm_object, dtype=float), np.asarray(b.T_palm_object, dtype=float)
     tips_a = transform_points(inv_T(T_a), hand.tip_positions(q_a))
     tips_b = transform_points(inv_T(T_b), hand.tip_positions(q_b))
-    held_at = _rolling_tips(ctx, (q_a, T_a, tips_a), (q_b, T_b, tips_b))
+    rolling_at = _rolling_tips(ctx, (q_a, T_a, tips_a), (q_b, T_b, tips_b))
     fingers = list(hand.fingers)
     ik_error = [0.0]  # the largest tip error of the IK knots, m
     poses: dict[float, NDArray] = {0.0: T_a, 1.0: T_b}  # s -> the pose of every solved knot
@@ -78,15 +79,13 @@ def repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     def curve(s: float, warm: NDArray | None) -> tuple[NDArray, str]:
         if s in (0.0, 1.0):
             return (q_a if s == 0.0 else q_b), ""
-        T_s, held = interpolate_pose(T_a, T_b, s), (1.0 - s) * tips_a + s * tips_b
+        T_s, roll = interpolate_pose(T_a, T_b, s), rolling_at(s)
         q_lin = (1.0 - s) * q_a + s * q_b
-        q, e = _ik(ctx, q_lin if warm is None else warm, fingers, transform_points(T_s, held),
-                   ctx.finger_joints, q_lin)
-        for _ in range(ROLL_PASSES):  # the tips where they roll to as they turn
-            held = held_at(s, q, T_s)
-            q, e = _ik(ctx, q, fingers, transform_points(T_s, held), ctx.finger_joints, q_lin)
+        q, e = rolling_tip_ik(hand, q_lin if warm is None else warm, T_s, roll, ctx.finger_joints, q_lin,
+                              damping=o.ik_damping, max_iters=o.ik_max_iters)
         T = T_s
         if float(np.max(np.linalg.norm(e, axis=1))) > FOLLOW_TOL:  # the object follows the hand
+            held = roll.targets(tip_frames(hand, q, T_s)[1])[0]
             q, T, e = tip_object_ik(hand, q, T_s, fingers, held, ctx.finger_joints, q_ref=q_lin, T_ref=T_s,
                                     damping=o.ik_damping, max_iters=o.ik_max_iters)
         poses[s] = T
@@ -99,7 +98,8 @@ def repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     chord = float(ctx.segment_motion(np.stack([q_a, q_b]))[0])
     s_knots, Q, why = _knots(ctx, curve, int(math.ceil(chord / COARSE_SPACING)) + 1)
     Ts = _knot_poses(s_knots, poses)
-    held = [held_at(float(s), q, T) for s, q, T in zip(s_knots, Q, Ts, strict=True)]
+    held = [rolling_at(float(s)).targets(tip_frames(hand, q, T)[1])[0]
+            for s, q, T in zip(s_knots, Q, Ts, strict=True)]
     correction = max(float(np.max(np.linalg.norm(
         transform_points(T, c) - transform_points(interpolate_pose(T_a, T_b, float(s)), c), axis=1)))
         for s, T, c in zip(s_knots, Ts, held, strict=True))
@@ -120,24 +120,25 @@ def repose_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
     return _timed(ctx, Q, Ts, ["repose"] * (len(Q) - 1), problems, metrics)
 
 
-def _rolling_tips(ctx: _Context, a: tuple, b: tuple):
-    """held_at(s, q, T_s) -> (m, 3): the tip centres, object frame, at a knot s of a reposing from
-    a = (q_a, T_a, tips_a) to b (joints, pose, tip centres in the object frame) whose joints q and pose
-    T_s turn each tip by θ(s) from a: tips_a + ρ θ(s) × n (rolling, `grasp_metrics.rolling_displacement`,
-    n between a's normal and the one interpolated towards b's) + s × the slide that OPT2 left between a
-    and b (spread evenly), so that the path's tips roll as its ends do."""
+def _rolling_tips(ctx: _Context, a: tuple, b: tuple) -> Callable[[float], Rolling]:
+    """rolling_at(s) -> the `rolling_ik.Rolling` of knot s of a reposing from a = (q_a, T_a, tips_a) to b
+    (joints, pose, tip centres in the object frame): each tip at tips_a + ρ θ × n, θ its turn since a
+    (rolling, `grasp_metrics.rolling_displacement`; n between a's normal and the one interpolated towards
+    b's) + s × the slide that OPT2 left between a and b (spread evenly), so that the path's tips roll as
+    its ends do."""
     (q_a, T_a, tips_a), (q_b, T_b, tips_b) = a, b
     hand, rho = ctx.hand, ctx.hand.tip_radius
     R_a, R_b = tip_frames(hand, q_a, T_a)[1], tip_frames(hand, q_b, T_b)[1]
     n_a, n_b = (contact_normals(np.asarray(ctx.obj.closest_points(t)[0], float), t) for t in (tips_a, tips_b))
     left = (tips_b - tips_a) - rolling_displacement(R_a, R_b, n_a + n_b, rho)
 
-    def held_at(s: float, q: NDArray, T_s: NDArray) -> NDArray:
+    def rolling_at(s: float) -> Rolling:
         n_s = (1.0 - s) * n_a + s * n_b
         n_s /= np.linalg.norm(n_s, axis=1, keepdims=True)
-        return tips_a + rolling_displacement(R_a, tip_frames(hand, q, T_s)[1], n_a + n_s, rho) + s * left
+        n = n_a + n_s
+        return Rolling(tips_a, R_a, n / np.linalg.norm(n, axis=1, keepdims=True), s * left, rho)
 
-    return held_at
+    return rolling_at
 
 
 def _knot_poses(s_knots: NDArray, poses: dict[float, NDArray]) -> NDArray[np.float64]:

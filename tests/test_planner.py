@@ -40,15 +40,11 @@ KNOWN_MOTION_FAILURES: dict[tuple[str, str], str] = {}
 """Plans whose only violations are verify's sampled checks between the steps (`motion_*`; measured). None
 since the object follows the hand in reposings (cylinder_slide svd: `test_repose_trajectory`) and
 lifts also lean at 2/5 height (bottle_regrasp sd's thumb touch-down: `test_gait_touch_down`)."""
-PAPER_STOPS = {
-    ("box_shift", "sd"): "since the tips roll (stop 23) the reposing at step 18 has a path whose IK "
-                         "jumps (knots 15 mm apart) and slides a tip 1.9 mm: refused, the plan ends in "
-                         "'solver_failure' (since OPT1 holds a link closer than β no worse: 'stalled' "
-                         "after 13 iterations of gaits alone) with the ring 19 mm from its goal "
-                         "(measured 2026-12-03; the shipped fingerprints show it since the rolling tips)",
-}
+PAPER_STOPS: dict[tuple[str, str], str] = {}
 """Shipped problems on which the paper planner (stability "none") stops before converging (measured);
-their plans must still verify."""
+their plans must still verify. None since the reposing paths' rolling-contact IK (`rolling_ik`, issue 12):
+box_shift sd, refused before at step 18 for a path whose IK jumped (knots 15 mm apart) and slid a tip
+1.9 mm, converges (4 iterations, max error 5.93 mm; measured 2026-12-03)."""
 SD_SLOW = pytest.mark.slow  # the sd half of the shipped problems: in the slow run (time of the default run)
 DEFAULT_RUN = ("box_shift",)
 """The shipped problems whose svd plan the default run checks (box_shift's certified plan, ~25 s, is

@@ -212,7 +212,8 @@ def test_the_paper_planner_is_unchanged(plans):
     # record, on main 5964f02, showed the certificates' code leaves "none" unchanged; the benchmark
     # compares every shipped problem and both methods), and again when OPT2 held the tips where they touch
     # the surface and the final moves polished the contacts and retried shorter moves, and when OPT2's
-    # corrections re-solved from their last solution)
+    # corrections re-solved from their last solution, and when the reposing paths' IK solved the rolling
+    # tips with the rolling-contact Jacobian, rolling_ik: 8 of 10 plans changed, all converged and verified)
     paper, _ = plans
     before = {(r["problem"], r["method"]): r for r in json.loads(BEFORE.read_text())["records"]}
     ref = before[("box_shift", "svd")]

@@ -20,6 +20,7 @@ from regrasp_casadi.grasp_metrics import tip_frames, tip_slip
 from regrasp_casadi.motion import StepPath, interpolate_knots, sample_knots, time_stamps
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.tip_ik import joints_at_limits
 from regrasp_casadi.trajectory import TrajectoryOptions, plan_trajectories
 from regrasp_casadi.transforms import interpolate_pose, inv_T, make_T, rot_axis_angle, transform_points
 from regrasp_casadi.verify import verify
@@ -294,8 +295,12 @@ def test_a_reposing_the_joint_limits_cannot_follow_is_flagged(box):
     a, b = _repose_steps(box, [0.3318, -0.8716, 0.3609], 20.88, [3.649, 2.367, -0.003])
     path = plan_trajectories([a, b], hand, obj, NO_SELF)[1]
     assert not path.ok
-    assert path.detail.startswith("IK: ") and "joints at their limits: " in path.detail
-    assert path.metrics["max_ik_error"] > 5e-4
+    # the middle finger held at two limits (joints 5 and 7) reaches its knots only with the object
+    # following the hand, and its tip then slides over the box (before the rolling-contact IK of issue 12
+    # a knot was left 1.02 mm from its target, and the path slid the same 11.2 mm)
+    assert "a tip slides" in path.detail and path.metrics["max_slip"] > 5e-3
+    held = set().union(*(joints_at_limits(hand, q, np.arange(hand.n_joints)) for q in path.q))
+    assert {"joint_5.0", "joint_7.0"} <= held
     assert np.array_equal(path.q[-1], b.q)  # still a whole motion from A to B
 
 
