@@ -42,6 +42,7 @@ from numpy.typing import NDArray
 from regrasp_casadi import solver as _solver
 from regrasp_casadi import terms
 from regrasp_casadi.hand import Hand
+from regrasp_casadi.nlp_cache import NLPCache
 from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.self_collision import SelfCollisionConstraint
 from regrasp_casadi.transforms import inv_T, make_T, transform_points
@@ -165,7 +166,7 @@ class GraspNLP:
         return bool(np.min(self.hand.self_collision_distances(q), initial=np.inf) >= self.self_clearance)
 
 
-_NLP_CACHE = _solver.NLPCache(max_size=8)
+_NLP_CACHE = NLPCache(max_size=8)
 """The grasp NLPs, one per (hand, object, β, self-clearance)."""
 
 

@@ -28,9 +28,9 @@ from regrasp_casadi.holding import STABILITY_KINDS, Holding
 from regrasp_casadi.in_grasp import InGraspNLP, svd_target, trust_region
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.long_gait import long_gait
+from regrasp_casadi.nlp_cache import NLPCache, clear_built_solvers
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions
-from regrasp_casadi.solver import NLPCache
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.stall_report import stalled_fingers
 from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories, motion_context, step_path
@@ -71,8 +71,10 @@ _DEFAULT_CACHE = NLPCache(max_size=64)
 
 
 def clear_nlp_cache() -> None:
-    """Forget every NLP of the process-wide cache (they are rebuilt on the next plan)."""
+    """Forget every NLP of the process-wide cache and every solver `build_solver` keeps (they are rebuilt
+    on the next plan)."""
     _DEFAULT_CACHE.clear()
+    clear_built_solvers()
 
 
 class _ProgressWatch:

@@ -1,8 +1,8 @@
 """The one home of solving: the NLP backend and its options, the parameter layout, a guarded solve with
 its success test, the warm-start policy and the exact-offset correction loop.
 
-Every NLP of the package is built by `build_solver` (and kept in an `NLPCache`), so swapping IPOPT for
-another CasADi `nlpsol` plugin is a change of this file only (`BACKEND` and `backend_options`). A failed
+Every NLP of the package is built by `build_solver` (kept in a `nlp_cache.NLPCache`), so swapping IPOPT
+for another CasADi `nlpsol` plugin is a change of this file only (`BACKEND` and `backend_options`). A failed
 solve is a status, not an exception: `solve` maps the backend's `return_status` into `SolveResult`.
 
     >>> layout = ParamLayout([("R_palm_object", (3, 3)), ("t_palm_object", (3,))])
@@ -15,16 +15,15 @@ from __future__ import annotations
 
 import logging
 import time
-from collections import OrderedDict
-from collections.abc import Callable, Hashable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Generic, TypeVar
+from typing import Generic, TypeVar
 
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from regrasp_casadi import compiled, solve_log
+from regrasp_casadi import compiled, nlp_cache, solve_log
 from regrasp_casadi.constants import BETA, SELF_CLEARANCE
 
 __all__ = [
@@ -47,7 +46,6 @@ __all__ = [
     "Correction",
     "correct_offsets",
     "clipped_if_finite",
-    "NLPCache",
 ]
 
 _log = logging.getLogger(__name__)
@@ -210,14 +208,21 @@ def build_solver(name: str, nlp: dict, options: SolverOptions | None = None,
     the CasADi function (it shows in profiles and in `solver.name()`). `curved_rows`: the constraint rows
     whose curvature the Hessian of the Lagrangian includes (`lagrangian_hessian`; None: all, the exact
     Hessian). Compiled to C when `compiled.enabled(options.compiled)` (falling back to the interpreted
-    solver if that fails)."""
+    solver if that fails). A solver built before in this process from the same expressions and options
+    is returned again (`nlp_cache.solver_key`)."""
     options = options or SolverOptions()
     opts = backend_options(options)
+    use_compiled = compiled.enabled(options.compiled)
+    key = nlp_cache.solver_key(name, BACKEND, nlp, opts, curved_rows, use_compiled)
+    solver = nlp_cache.built_solver(key)  # OPT2's expressions are the same for every object
+    if solver is not None:
+        return solver
     if curved_rows is not None:
         opts["hess_lag"] = lagrangian_hessian(nlp, curved_rows)
-    if compiled.enabled(options.compiled):
-        return compiled.solver(name, nlp, BACKEND, opts)
-    return ca.nlpsol(name, BACKEND, nlp, opts)
+    if use_compiled:
+        return nlp_cache.keep_solver(key, compiled.solver(name, nlp, BACKEND, opts))
+    return nlp_cache.keep_solver(key, ca.nlpsol(name, BACKEND, nlp, opts))
+
 
 
 @dataclass(frozen=True)
@@ -527,63 +532,3 @@ def correct_offsets(
         offsets = new_offsets(x, evaluation, offsets)
     return Correction(x=x, evaluation=evaluation, result=res, converged=converged, usable=usable,
                       solves=solves, iterations=iterations, solve_time=solve_time)
-
-
-# ------------------------------------------------------------------------------------------ NLP cache
-NLP = TypeVar("NLP")
-
-
-class _Same:
-    """A key part that compares by identity and holds its object, so that while the key is cached the
-    object stays alive and its id cannot be reused by another."""
-
-    __slots__ = ("obj",)
-
-    def __init__(self, obj: Any):
-        self.obj = obj
-
-    def __hash__(self) -> int:
-        return id(self.obj)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, _Same) and other.obj is self.obj
-
-
-class NLPCache:
-    """Built NLPs, reused across plans: one per (kind, hand, object, key), the least recently used
-    dropped beyond `max_size`.
-
-    The hand and object are part of the key by identity (a new model is a new entry, even when equal
-    to a cached one) and are held by the cache until their entries are dropped or the cache is cleared.
-
-        >>> cache = NLPCache()
-        >>> nlp = cache.get("finger_gait", hand, obj, ("index", options), lambda: FingerGaitNLP(...))
-        >>> cache.clear()
-    """
-
-    def __init__(self, max_size: int = 64):
-        self.max_size = int(max_size)
-        """Largest number of NLPs kept."""
-        self.builds = 0
-        """Number of NLPs this cache has built."""
-        self._nlps: OrderedDict[tuple, Any] = OrderedDict()
-
-    def get(self, kind: str, hand: Any, obj: Any, key: Hashable, build: Callable[[], NLP]) -> NLP:
-        """The cached NLP of `kind` for (`hand`, `obj`, `key`); on a miss `build()` makes it."""
-        full_key = (kind, _Same(hand), _Same(obj), key)
-        if full_key in self._nlps:
-            self._nlps.move_to_end(full_key)
-            return self._nlps[full_key]
-        nlp = build()
-        self.builds += 1
-        self._nlps[full_key] = nlp
-        while len(self._nlps) > self.max_size:
-            self._nlps.popitem(last=False)
-        return nlp
-
-    def clear(self) -> None:
-        """Forget every NLP (and release the hands and objects they were built for)."""
-        self._nlps.clear()
-
-    def __len__(self) -> int:
-        return len(self._nlps)

@@ -8,6 +8,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from regrasp_casadi import nlp_cache
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.transforms import inv_T, transform_points
@@ -99,6 +100,7 @@ def test_resolving_does_not_rebuild(problem, monkeypatch):
         return real(name, *args, **kwargs)
 
     monkeypatch.setattr(ca, "nlpsol", counting)
+    nlp_cache.clear_built_solvers()  # no solver of these expressions kept from an earlier test
     nlp = FingerGaitNLP(problem.hand, problem.obj, "ring")
     assert len(built) == 1
     g0 = problem.grasp0

@@ -12,6 +12,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from regrasp_casadi import nlp_cache
 from regrasp_casadi.finger_gait import FingerGaitOptions
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.plan import Plan
@@ -105,6 +106,7 @@ def _count_nlpsol(monkeypatch) -> list[str]:
 
 def test_no_rebuild_inside_a_plan(monkeypatch):
     fresh = RegraspProblem.load(BOX_PROBLEM)  # a new hand and object: nothing of theirs is cached yet
+    nlp_cache.clear_built_solvers()  # nor a solver of the same expressions, built by an earlier test
     built = _count_nlpsol(monkeypatch)
     first = plan_regrasp(fresh.grasp0, fresh.grasp_goal, method="svd", max_iters=4)  # a short plan
     # one OPT1 per finger of the gait and one OPT2 (the svd method reposes with the pose NLP)

@@ -1,10 +1,7 @@
-"""solver.py: the parameter layout, the exact-offset correction loop, the warm-start policy and the NLP
-cache."""
+"""solver.py: the parameter layout, the exact-offset correction loop, the warm-start policy and the
+Hessian of the Lagrangian."""
 
 from __future__ import annotations
-
-import gc
-import weakref
 
 import casadi as ca
 import numpy as np
@@ -14,7 +11,6 @@ from scipy.optimize import brentq
 from regrasp_casadi import solver
 from regrasp_casadi.solver import (
     Bounds,
-    NLPCache,
     ParamLayout,
     SolverOptions,
     WarmStart,
@@ -127,53 +123,6 @@ def test_warm_start_keeps_the_multipliers_of_successful_solves_only(toy):
     assert res.success and warm.is_warm
     warm.reset()
     assert not warm.is_warm
-
-
-# ------------------------------------------------------------------------------------------- NLP cache
-class _Model:
-    """Stands for a Hand or ObjectModel (compared by identity, like them)."""
-
-
-def test_cache_builds_once_per_kind_models_and_key():
-    cache = NLPCache()
-    hand, obj = _Model(), _Model()
-    built = []
-
-    def build(tag):
-        return lambda: built.append(tag) or tag
-
-    assert cache.get("gait", hand, obj, "index", build("a")) == "a"
-    assert cache.get("gait", hand, obj, "index", build("b")) == "a"  # a hit: build not called
-    assert cache.get("gait", hand, _Model(), "index", build("c")) == "c"  # another object
-    assert cache.get("in_grasp", hand, obj, "index", build("d")) == "d"  # another kind
-    assert built == ["a", "c", "d"] and cache.builds == 3 and len(cache) == 3
-    cache.clear()
-    assert len(cache) == 0 and cache.get("gait", hand, obj, "index", build("e")) == "e"
-
-
-def test_cache_holds_its_models_until_cleared():
-    """A cached model cannot be collected, so its id cannot be reused by a new model while cached."""
-    cache = NLPCache()
-    obj = _Model()
-    alive = weakref.ref(obj)
-    cache.get("gait", _Model(), obj, None, lambda: "nlp")
-    del obj
-    gc.collect()
-    assert alive() is not None
-    cache.clear()
-    gc.collect()
-    assert alive() is None
-
-
-def test_cache_drops_the_least_recently_used():
-    cache = NLPCache(max_size=2)
-    hand, obj = _Model(), _Model()
-    for key in ("a", "b"):
-        cache.get("k", hand, obj, key, lambda key=key: key)
-    cache.get("k", hand, obj, "a", lambda: "rebuilt a")  # a hit: "a" is now the most recent
-    cache.get("k", hand, obj, "c", lambda: "c")  # drops "b"
-    assert cache.get("k", hand, obj, "a", lambda: "rebuilt a") == "a"
-    assert cache.get("k", hand, obj, "b", lambda: "rebuilt b") == "rebuilt b"
 
 
 # ------------------------------------------------------------------ a Hessian without some rows' curvature

@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from regrasp_casadi import compiled
+from regrasp_casadi import compiled, nlp_cache
 from regrasp_casadi.constants import SELF_CLEARANCE
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
 from regrasp_casadi.in_grasp import InGraspNLP
@@ -35,6 +35,12 @@ def jit_cache(tmp_path_factory):
     mp.setenv("REGRASP_CACHE_DIR", str(folder))
     yield folder
     mp.undo()
+
+
+@pytest.fixture(autouse=True)
+def no_kept_solvers():
+    """Every build of this module reaches `compiled.solver` (no solver kept from an earlier build)."""
+    nlp_cache.clear_built_solvers()
 
 
 @pytest.fixture
@@ -109,6 +115,7 @@ def test_opt1_compiled_matches_interpreted_and_is_cached(jit_cache, monkeypatch,
     assert a.success
     _same(a, b)
 
+    nlp_cache.clear_built_solvers()  # as in a new process
     again = _build(monkeypatch, "1", make)  # a new NLP object: same expressions, same key
     assert compiled.compile_count() == n0 + 1
     assert library.stat().st_mtime_ns == mtime
@@ -134,6 +141,7 @@ def test_opt2_is_one_nlp_per_hand(monkeypatch):
     for name in ("box_rotate", "bottle_regrasp"):
         problem = RegraspProblem.load(PROBLEMS / f"{name}.yaml")
         pieces.append(len(problem.obj.pieces))
+        nlp_cache.clear_built_solvers()  # else the second build is the first's solver, kept
         _build(monkeypatch, "1", lambda: InGraspNLP(problem.hand, problem.obj, "svd"))  # noqa: B023
     assert pieces[0] == 1 and pieces[1] > 1
     assert len(keys) == 2 and keys[0] == keys[1]
@@ -176,7 +184,10 @@ def test_missing_compiler_falls_back_with_one_warning(jit_cache, monkeypatch, tm
     assert compiled.find_compiler() is None
     n0 = compiled.compile_count()
     with caplog.at_level(logging.WARNING, logger="regrasp_casadi.compiled"):
-        solvers = [build_solver("toy", _toy(), SolverOptions(compiled=True)) for _ in range(2)]
+        solvers = []
+        for _ in range(2):  # two builds (none kept), one warning
+            nlp_cache.clear_built_solvers()
+            solvers.append(build_solver("toy", _toy(), SolverOptions(compiled=True)))
     warnings = [r for r in caplog.records if "no C compiler" in r.getMessage()]
     assert len(warnings) == 1
     assert compiled.compile_count() == n0

@@ -221,9 +221,9 @@ def test_the_paper_planner_is_unchanged(plans):
     assert paper.status == ref["status"] and paper.iterations == ref["iterations"]
     assert "".join(s.kind[0] for s in paper.steps) == ref["steps"]
     # the same steps, their errors within 0.25 mm, not to the recorded 1 µm: the planner amplifies the
-    # last digits of another CPU's floating point (BLAS kernels, MUMPS) into different contacts. Recorded
-    # on a 2-core AMD EPYC VM: mean 1.868 mm, max 3.824 mm; the same code (00fc2a8) on a 2-core Intel Xeon
-    # VM, 2026-12-03: the same 22 steps, mean 1.819 mm, max 3.653 mm
+    # last digits of another CPU's floating point (BLAS kernels, MUMPS) into different contacts. The
+    # record (a25a936) is of a 2-core Intel Xeon VM: mean 1.819 mm, max 3.653 mm; before the rolling IK
+    # (00fc2a8), a 2-core AMD EPYC VM gave the same 22 steps with mean 1.868 mm, max 3.824 mm
     assert float(np.mean(err)) * 1e3 == pytest.approx(ref["mean_error_mm"], abs=0.25)
     assert float(np.max(err)) * 1e3 == pytest.approx(ref["max_error_mm"], abs=0.25)
     assert all(s.certificate is None for s in paper.steps)
