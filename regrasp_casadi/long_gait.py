@@ -7,9 +7,10 @@ its start), the tip sphere cutting an edge or a rim on the way — stops in a lo
 the goal still reachable at the current object pose (measured: mug seed 2 sd, the ring 22.6 mm from its
 goal tip centre with the object at the desired pose; three gaits of η/2, η and 2η each moved the tip
 0.01 mm). `long_gait` solves OPT1 (the same NLP and step bound η) once from other joints: about η
-of tip travel along the joint-space line from the finger's joints to its IK at the goal (`tip_ik`, the
-links ignored), which goes around what the tip's straight line runs into; the gait's exact checks and
-its lift-off / transit / touch-down path (`certified_round.accept_gait`) judge it like any other gait.
+of tip travel along the joint-space line from the finger's joints to its IK at the goal
+(`tip_ik.finger_reach_ik`, the links ignored: from the finger's joints, else from the goal grasp's,
+else from mid-range), which goes around what the tip's straight line runs into; the gait's exact checks
+and its lift-off / transit / touch-down path (`certified_round.accept_gait`) judge it like any other gait.
 
     >>> moved = long_gait(run, "ring")        # run: the planner's `_Run`, stalled
 """
@@ -22,7 +23,7 @@ import numpy as np
 
 from regrasp_casadi.certified_round import accept_gait
 from regrasp_casadi.stall_report import REACH_TOL
-from regrasp_casadi.tip_ik import tip_ik
+from regrasp_casadi.tip_ik import finger_reach_ik
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.planner import _Run
@@ -34,14 +35,14 @@ def long_gait(run: _Run, finger: str) -> bool:
     """One gait of `finger` towards its goal tip centre, started from the joints a part of the way to its
     IK there at the current object pose (see the module docstring); True when a gait that brings its
     contact closer to its goal is taken. Not tried (False) when the goal is out of the finger's reach at
-    this pose (its IK ends farther than `stall_report.REACH_TOL`)."""
+    this pose (its IK, `tip_ik.finger_reach_ik`, ends farther than `stall_report.REACH_TOL`)."""
     r, hand, T = run.fingers.index(finger), run.hand, run.T_palm_object
     goal_object = run.goal_tips[r]
     way = float(np.linalg.norm(goal_object - run.tips_object()[r]))
     if way <= 0.0:
         return False
-    joints = np.asarray(hand.finger_joints[finger])
-    q_goal, e = tip_ik(hand, run.q, [finger], (T[:3, :3] @ goal_object + T[:3, 3])[None], joints, run.q)
+    q_goal, e = finger_reach_ik(hand, run.q, finger, T[:3, :3] @ goal_object + T[:3, 3], [run.q_goal],
+                                tol=REACH_TOL)  # from its joints, else the goal grasp's, else mid-range
     if float(np.linalg.norm(e)) > REACH_TOL:
         return False
     q_init = run.q + min(1.0, run.options.finger_gait.eta / way) * (q_goal - run.q)  # about η on the way

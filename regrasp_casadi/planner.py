@@ -114,6 +114,8 @@ class _Run:
         self.goal_contacts = np.asarray(grasp_goal.contacts_object, dtype=float)
         self.goal_tips = np.asarray(grasp_goal.tip_centers_object, dtype=float)
         self.T_palm_object_goal = np.asarray(grasp_goal.T_palm_object, dtype=float)
+        self.q_goal = None if grasp_goal.q is None else np.asarray(grasp_goal.q, dtype=float)
+        """(n,) the goal grasp's joints, rad, when it gives them (a start of the reach IKs), else None."""
         self.fingers = tuple(self.hand.fingers)
         self.steps: list[PlanStep] = []
         self.timing = {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0, "total": 0.0}
@@ -416,7 +418,7 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
             hint = pinned_opposer_hint(run.obj, run.fingers, run.steps[-1], options.zeta) \
                 if options.stability == "force_closure" else ""
             hint += stalled_fingers(run.hand, run.obj, run.q, run.T_palm_object, run.goal_tips,
-                                    run.steps[-1].contact_error, options.zeta)
+                                    run.steps[-1].contact_error, options.zeta, q_goal=run.q_goal)
             if run.failures and len(run.steps) == n_steps_before:  # the last iteration could not move
                 return end("solver_failure", "; ".join(run.failures) + hint)
             return end("stalled", f"largest contact error {run.largest_error() * 1e3:.2f} mm > ζ: no "

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from regrasp_casadi.tip_ik import tip_ik
+from regrasp_casadi.tip_ik import finger_reach_ik
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
@@ -35,7 +35,7 @@ REACH_TOL = 1e-3
 
 def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDArray,
                     goal_tips_object: NDArray, contact_error: NDArray, zeta: float, *,
-                    n_samples: int = 41) -> str:
+                    n_samples: int = 41, q_goal: NDArray | None = None) -> str:
     """"; not at their goals: <finger> <error> mm (<why>) | ..." for every finger whose contact error
     exceeds `zeta`, or "" when none does.
 
@@ -48,6 +48,8 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
         contact_error: (m,) distance of each contact to its goal contact, m.
         zeta: ζ, m.
         n_samples: samples of each straight tip-to-goal line.
+        q_goal: (n,) the goal grasp's joints, rad, if known: a further start of the reach IK
+            (`tip_ik.finger_reach_ik`).
     """
     R, t = np.asarray(T_palm_object, float)[:3, :3], np.asarray(T_palm_object, float)[:3, 3]
     tips = (np.asarray(hand.tip_positions(q), float) - t) @ R
@@ -68,12 +70,12 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
             why.append(f"its tip sphere would cut {(rho - least) * 1e3:.1f} mm into the object on the "
                        f"straight line to its goal")
         q = np.asarray(q, float)
-        q_goal, e = tip_ik(hand, q, [finger], (R @ goal + t)[None], np.asarray(hand.finger_joints[finger]), q)
+        q_reach, e = finger_reach_ik(hand, q, finger, R @ goal + t, [q_goal], tol=REACH_TOL)
         if float(np.linalg.norm(e)) > REACH_TOL:
             why.append(f"out of its reach at this object pose (its tip gets no closer than "
                        f"{float(np.linalg.norm(e)) * 1e3:.1f} mm)")
         else:  # reached: with its other links clear of the object?
-            links = (np.asarray(hand.sphere_centers(q_goal, finger), float).reshape(-1, 3) - t) @ R
+            links = (np.asarray(hand.sphere_centers(q_reach, finger), float).reshape(-1, 3) - t) @ R
             depth = float(np.min(obj.exact_signed_distance(links) - hand.sphere_radii(finger)))
             if depth < 0.0:
                 why.append(f"at this object pose its tip reaches the goal only with a link "

@@ -19,7 +19,7 @@ the pose (the joints and the pose pulled towards their references in the null sp
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -30,7 +30,7 @@ from regrasp_casadi.transforms import exp_so3, log_SO3
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
 
-__all__ = ["tip_ik", "tip_object_ik", "joints_at_limits", "IK_CONVERGED"]
+__all__ = ["tip_ik", "finger_reach_ik", "tip_object_ik", "joints_at_limits", "IK_CONVERGED"]
 
 IK_CONVERGED = 1e-7
 """`tip_ik` iterates until every (weighted) tip error is below this, m (or until it stops making
@@ -130,6 +130,50 @@ def tip_ik(hand: Hand, q_start: NDArray, fingers: Sequence[str], p_palm_targets:
         if stalled:
             break
     return q, e
+
+
+def _reach_iks(hand: Hand, q: NDArray, finger: str, p_palm_target: NDArray,
+                     q_seeds: Sequence[NDArray | None] = ()
+                     ) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """`tip_ik` of one finger's tip centre to `p_palm_target` (3,), palm frame, m, from several starts, in
+    this order (lazily): q (n,) itself, q with that finger's joints taken from each of `q_seeds` ((n,) rad
+    each; None skipped, e.g. the goal grasp's joints), and q with them at the middle of their ranges; the
+    other fingers' joints stay as in q, and each start pulls its null space towards itself.
+
+    A local IK from q alone stops where a joint limit or the finger's posture blocks it (measured: the
+    generated cup pair of seed 0, SD: the ring's IK from its joints ended 47.9 mm from a goal that the
+    goal grasp's joints reach exactly, with the object at the desired pose).
+
+    Yields:
+        (q (n,) within the limits, the tip error (3,), palm frame, m) per start.
+    """
+    q = np.asarray(q, dtype=float)
+    joints = np.asarray(hand.finger_joints[finger])
+    target = np.asarray(p_palm_target, dtype=float)[None]
+    for seed in (q, *q_seeds, hand.q_mid()):
+        if seed is None:
+            continue
+        start = q.copy()
+        start[joints] = np.asarray(seed, dtype=float)[joints]
+        q_end, e = tip_ik(hand, start, [finger], target, joints, start)
+        yield q_end, e[0]
+
+
+def finger_reach_ik(hand: Hand, q: NDArray, finger: str, p_palm_target: NDArray,
+                    q_seeds: Sequence[NDArray | None] = (), *, tol: float = 1e-3
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The first of `_reach_iks` whose tip ends within `tol` (m) of `p_palm_target`, so a goal the
+    finger's own joints reach gives the IK from them (the nearest posture); else the one ending closest
+    (the first on a tie). Returns q (n,) and the tip error (3,), palm frame, m."""
+    best: tuple[float, NDArray, NDArray] | None = None
+    for q_end, e in _reach_iks(hand, q, finger, p_palm_target, q_seeds):
+        err = float(np.linalg.norm(e))
+        if best is None or err < best[0]:
+            best = (err, q_end, e)
+        if err <= tol:
+            break
+    assert best is not None
+    return best[1], best[2]
 
 
 def tip_object_ik(hand: Hand, q_start: NDArray, T_start: NDArray, fingers: Sequence[str],

@@ -27,11 +27,15 @@ def problem():
 
 
 @pytest.mark.slow  # 27 s on a 2-core VM: in the slow run, so the default run stays within 10 minutes
-def test_paper_planner_converges_on_the_cup_pair(problem):
+@pytest.mark.parametrize("method", ["svd", "sd"])
+def test_paper_planner_converges_on_the_cup_pair(problem, method):
     """Before the fingertips' wall model and the gaits' polish: "solver_failure", the middle finger held
-    57 mm and the ring 76 mm from their goals. Now converged and verified, and every final contact is
-    within ζ of its goal by trimesh's exact closest points (independent of the planner's geometry)."""
-    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", stability="none")
+    57 mm and the ring 76 mm from their goals (SVD). SD stalled with the object at its desired pose and the
+    ring 74 mm from its goal until `long_gait`'s IK also started from the goal grasp's joints and the
+    middle of the ranges (`tip_ik.finger_reach_ik`). Now both converged and verified, and every final
+    contact is within ζ of its goal by trimesh's exact closest points (independent of the planner's
+    geometry)."""
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, stability="none")
     assert plan.status == "converged", plan.status_detail
     assert verify(plan, problem.hand, problem.obj).ok
     last = plan.steps[-1]

@@ -13,10 +13,12 @@ import trimesh
 from regrasp_casadi.finger_gait import FingerGaitNLP
 from regrasp_casadi.planner import PlannerOptions, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
-from regrasp_casadi.tip_ik import tip_ik
+from regrasp_casadi.stall_report import stalled_fingers
+from regrasp_casadi.tip_ik import finger_reach_ik, tip_ik
 from regrasp_casadi.verify import verify
 
 STUCK = Path(__file__).resolve().parent / "data" / "mug_ring_stuck_at_edge.yaml"
+CUP_PAIR = Path(__file__).resolve().parent / "data" / "cup_pair_seed0.yaml"
 
 
 @pytest.fixture(scope="module")
@@ -73,3 +75,49 @@ def test_the_stalled_plan_now_reaches_the_ring_goal(problem):
     last = plan.steps[-1]
     r = problem.hand.fingers.index("ring")
     assert _exact_contact_error(problem, last.q, last.T_palm_object, r) <= plan.options["zeta"]
+
+
+@pytest.fixture(scope="module")
+def cup_ring_at_its_limits():
+    """The cup pair of seed 0 with the object at its desired pose and the ring's joints at their upper
+    limits: (problem, q (n,), goal tip centre of the ring (3,), palm frame, m)."""
+    cup = RegraspProblem.load(CUP_PAIR)
+    hand, goal = cup.hand, cup.grasp_goal
+    joints = np.asarray(hand.finger_joints["ring"])
+    q = np.array(cup.grasp0.q, dtype=float)
+    q[joints] = hand.q_upper[joints]
+    T = goal.T_palm_object
+    return cup, q, T[:3, :3] @ goal.tip_centers_object[hand.fingers.index("ring")] + T[:3, 3]
+
+
+def test_the_reach_ik_starts_again_where_the_fingers_own_joints_stop(cup_ring_at_its_limits):
+    """From the ring's joints at their limits the local IK stops tens of millimetres short of a goal that
+    the goal grasp's joints reach exactly; `finger_reach_ik` started from them too reaches it (by the FK
+    of the joints it returns), within the limits, the other fingers' joints untouched."""
+    cup, q, target = cup_ring_at_its_limits
+    hand = cup.hand
+    r, joints = hand.fingers.index("ring"), np.asarray(hand.finger_joints["ring"])
+    _, e_local = tip_ik(hand, q, ["ring"], target[None], joints, q)
+    assert np.linalg.norm(e_local) > 0.05
+    q_reach, e = finger_reach_ik(hand, q, "ring", target, [cup.grasp_goal.q])
+    assert np.linalg.norm(hand.tip_positions(q_reach)[r] - target) < 1e-6
+    assert np.allclose(hand.tip_positions(q_reach)[r] + e, target, atol=1e-12)
+    assert np.all(q_reach >= hand.q_lower) and np.all(q_reach <= hand.q_upper)
+    others = np.setdiff1d(np.arange(hand.n_joints), joints)
+    assert np.array_equal(q_reach[others], q[others])
+
+
+def test_the_stall_report_calls_out_of_reach_only_what_no_start_reaches(cup_ring_at_its_limits):
+    """The ring's goal reached by the goal grasp's joints is not reported out of reach (the report said
+    so before, from the IK of the finger's own joints alone); a goal 20 cm off the palm still is."""
+    cup, q, _ = cup_ring_at_its_limits
+    hand, goal = cup.hand, cup.grasp_goal
+    error = np.zeros(len(hand.fingers))
+    error[hand.fingers.index("ring")] = 0.07
+    text = stalled_fingers(hand, cup.obj, q, goal.T_palm_object, goal.tip_centers_object, error, 0.006,
+                           q_goal=goal.q)
+    assert "ring 70.0 mm" in text and "out of its reach" not in text
+    far = np.array(goal.tip_centers_object)
+    far[hand.fingers.index("ring")] += goal.T_palm_object[:3, :3].T @ np.array([0.0, 0.0, 0.2])
+    text = stalled_fingers(hand, cup.obj, q, goal.T_palm_object, far, error, 0.006, q_goal=goal.q)
+    assert "out of its reach" in text
