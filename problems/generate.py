@@ -1,6 +1,6 @@
 """Generate the shipped problem files (`problems/*.yaml`) with `regrasp_casadi.grasp_gen` (seeded).
 
-Each file is a regrasp pair on a generated object (box, cylinder, bottle, flat tool): an initial
+Each file is a regrasp pair on a generated object (box, cylinder, bottle, flat tool, cup): an initial
 four-finger precision grasp (joints + object pose) and a desired grasp (contacts + object pose, joints kept
 for reference), both force closure with μ = 0.5, tips on the exact surface within 0.1 mm, no other
 hand–object contact, no self-collision (the spheres of different fingers and of a finger and the palm
@@ -77,6 +77,11 @@ PROBLEMS = {
         ObjectModel.flat_tool, 0, 2, _nearest_moderate,
         "Flat spatula-like tool, 0.2 m long and 15 mm thick (issue 12's thin-object class); fingertips to "
         "contacts on average >= 3 cm away (object turned by at most 30 deg where a candidate allows)."),
+    "cup_regrasp": (
+        ObjectModel.cup, 0, 1, _nearest_moderate,
+        "Thin-walled cup (r = 0.04 m, 0.095 m tall, 4 mm walls; issue 12's container class); the ring "
+        "finger goes from the outer wall over the rim to the inner face, the middle finger 90 deg around "
+        "the outer wall (seed 0's pair)."),
 }
 
 

@@ -149,9 +149,10 @@ class Grasp:
     def tip_centers_object(self) -> NDArray[np.float64]:
         """(m, 3) fingertip sphere centres for this grasp, object frame, m.
 
-        For `from_joints` (or whenever `q` is given and the grasp was built directly) the actual tip
-        centres of `q`; for `from_contacts` each contact pushed out along the outward surface normal by
-        the tip radius. The planner uses them as the tip-centre targets of goal contacts.
+        For `from_joints` (or whenever `q` is given and the grasp was built directly), and for
+        `from_contacts` given a `q` whose tips touch at the contacts, the actual tip centres of `q`;
+        otherwise (`from_contacts`) each contact pushed out along the outward surface normal by the tip
+        radius. The planner uses them as the tip-centre targets of goal contacts.
         """
         cached = self._tip_centers_cache  # type: ignore[attr-defined]
         if cached is None:
@@ -215,7 +216,12 @@ class Grasp:
             obj: the object.
             contacts_object: (m, 3) contacts, object frame, m, rows in `hand.fingers` order.
             T_palm_object: (4, 4) (desired) object pose in the palm frame.
-            q: optional (n,) joint angles, rad; validated for count and limits only.
+            q: optional (n,) joint angles, rad; validated for count and limits. When its tip spheres
+                touch the surface at the contacts (`inconsistency` is ""), the grasp's tip centres
+                (`tip_centers_object`, the planner's targets) are those of q, as for `from_joints`;
+                otherwise each contact pushed out along its surface normal. They differ at edges and
+                rims, where the normal is a blend of the faces': a problem file's goal written from a
+                generated pair keeps the generator's tip placement (cup pair of seed 0: 1.66 mm).
             tol: allowed |exact signed distance| of a contact, m.
 
         Raises:
@@ -241,6 +247,8 @@ class Grasp:
             if not abs(d) <= tol:
                 raise GraspError(_surface_message(f"{finger} contact", float(d), tol))
         grasp = cls(hand, obj, T, c, q)
+        if q is not None and not grasp.inconsistency(tol=tol):
+            return grasp  # the tip centres of q (`tip_centers_object`), where they touch at the contacts
         normals = np.asarray(obj.surface_normals(c), dtype=np.float64)
         object.__setattr__(
             grasp, "_tip_centers_cache", frozen_array(c + float(hand.tip_radius) * normals)

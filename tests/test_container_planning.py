@@ -18,7 +18,7 @@ from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.stall_report import stalled_fingers
 from regrasp_casadi.verify import verify
 
-CUP_PAIR = Path(__file__).resolve().parent / "data" / "cup_pair_seed0.yaml"
+CUP_PAIR = Path(__file__).resolve().parents[1] / "problems" / "cup_regrasp.yaml"  # seed 0's pair
 
 
 @pytest.fixture(scope="module")

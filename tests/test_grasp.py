@@ -94,3 +94,31 @@ def test_from_contacts(two):
         Grasp.from_contacts(hand, obj, c[:1], tf.box_pose())
     with pytest.raises(GraspError, match="expected 6 joint angles for twofinger, got 5"):
         Grasp.from_contacts(hand, obj, c, tf.box_pose(), q=np.zeros(5))
+
+
+def test_a_goal_read_with_its_joints_targets_the_tips_of_those_joints():
+    """A problem file's goal gives contacts and the joints that realise them: its tip centres (the
+    planner's targets) are the tips of those joints, not each contact pushed out along the surface
+    normal, which differs at a rim (the shipped cup pair: the ring's contact on the rim's edge, > 1 mm
+    apart; with those targets the paper planner stalled on the file's pair, 74 mm from the ring's goal,
+    and converged on the pair in memory). Joints that do not touch at the contacts leave the normals'
+    centres (checked against trimesh's exact distance: a tip radius off the surface, over its contact)."""
+    import pathlib
+
+    import trimesh
+
+    from regrasp_casadi.problem import RegraspProblem
+    from regrasp_casadi.transforms import inv_T, transform_points
+
+    cup = RegraspProblem.load(pathlib.Path(__file__).resolve().parents[1] / "problems" / "cup_regrasp.yaml")
+    hand, obj, goal = cup.hand, cup.obj, cup.grasp_goal
+    tips_of_q = transform_points(inv_T(goal.T_palm_object), hand.tip_positions(goal.q))
+    assert np.allclose(goal.tip_centers_object, tips_of_q, atol=1e-12)
+    pushed = goal.contacts_object + hand.tip_radius * np.asarray(obj.surface_normals(goal.contacts_object))
+    assert np.max(np.linalg.norm(pushed - tips_of_q, axis=1)) > 1e-3
+    # the initial grasp's joints do not touch at the goal's contacts: the normals' centres
+    other = Grasp.from_contacts(hand, obj, goal.contacts_object, goal.T_palm_object, q=cup.grasp0.q)
+    assert np.allclose(other.tip_centers_object, pushed, atol=1e-12)
+    closest, distance, _ = trimesh.proximity.closest_point(obj.mesh, other.tip_centers_object)
+    assert np.allclose(distance, hand.tip_radius, atol=1e-4)
+    assert np.allclose(closest, goal.contacts_object, atol=1e-4)

@@ -18,7 +18,7 @@ from regrasp_casadi.tip_ik import finger_reach_ik, tip_ik
 from regrasp_casadi.verify import verify
 
 STUCK = Path(__file__).resolve().parent / "data" / "mug_ring_stuck_at_edge.yaml"
-CUP_PAIR = Path(__file__).resolve().parent / "data" / "cup_pair_seed0.yaml"
+CUP_PAIR = Path(__file__).resolve().parents[1] / "problems" / "cup_regrasp.yaml"  # seed 0's pair
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,7 @@ PROBLEMS = sorted((Path(__file__).resolve().parents[1] / "problems").glob("*.yam
 def test_required_problems_are_shipped():
     names = {p.stem for p in PROBLEMS}
     assert "box_rotate" in names
-    for prefix in ("box_", "cylinder_", "bottle_", "flat_tool_"):
+    for prefix in ("box_", "cylinder_", "bottle_", "flat_tool_", "cup_"):
         assert any(n.startswith(prefix) for n in names), prefix
 
 

@@ -158,19 +158,23 @@ def test_verify_follows_a_slide_steps_path(problem, plans):
     k, _, _ = _slide_windows(certified)[0]
     step = certified.steps[k]
     path = step.path
-    # plant a knot that swings the slider's first joint 0.1 rad in the middle of its path: the joints'
-    # linear path between the steps still slides (slide_path passes without the path), the path does not
-    q = np.array(path.q)
-    mid = len(q) // 2
-    q[mid, np.asarray(hand.finger_joints[step.finger]).ravel()[0]] += 0.1
-    bad_path = replace(path, q=q)
+    # plant a knot that swings one of the slider's joints 0.1 rad in the middle of its path (the one
+    # that lifts its tip farthest off the surface): the joints' linear path between the steps still
+    # slides (slide_path passes without the path), the path does not
     r = fingers.index(step.finger)
-    tip = hand.tip_positions(q[mid])[r]
     R, p = step.T_palm_object[:3, :3], step.T_palm_object[:3, 3]
     mesh_mm = problem.obj.mesh.copy()
     mesh_mm.apply_scale(1000.0)
-    _, d_mm, _ = trimesh.proximity.closest_point(mesh_mm, ((tip - p) @ R)[None] * 1000.0)
-    off = abs(d_mm[0] / 1000.0 - hand.tip_radius)
+    mid = len(path.q) // 2
+    swings = []
+    for j in np.asarray(hand.finger_joints[step.finger]).ravel():
+        q = np.array(path.q)
+        q[mid, j] += 0.1
+        tip = hand.tip_positions(q[mid])[r]
+        _, d_mm, _ = trimesh.proximity.closest_point(mesh_mm, ((tip - p) @ R)[None] * 1000.0)
+        swings.append((abs(d_mm[0] / 1000.0 - hand.tip_radius), int(j), q))
+    off, _, q = max(swings, key=lambda s: s[0])
+    bad_path = replace(path, q=q)
     assert off > 0.5e-3
     steps = list(certified.steps[: k + 1])  # the plan up to that slide (fewer steps to verify)
     start = replace(certified, steps=tuple(steps), status="iteration_limit")
