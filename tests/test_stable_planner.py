@@ -217,7 +217,9 @@ def test_the_paper_planner_is_unchanged(plans):
     # compares every shipped problem and both methods), and again when OPT2 held the tips where they touch
     # the surface and the final moves polished the contacts and retried shorter moves, and when OPT2's
     # corrections re-solved from their last solution, and when the reposing paths' IK solved the rolling
-    # tips with the rolling-contact Jacobian, rolling_ik: 8 of 10 plans changed, all converged and verified)
+    # tips with the rolling-contact Jacobian, rolling_ik: 8 of 10 plans changed, all converged and verified;
+    # and when a problem file's goal took the tip centres of its joints, Grasp.from_contacts: 12 of 12
+    # converged and verified, cup_regrasp added)
     paper, _ = plans
     before = {(r["problem"], r["method"]): r for r in json.loads(BEFORE.read_text())["records"]}
     ref = before[("box_shift", "svd")]
@@ -226,8 +228,9 @@ def test_the_paper_planner_is_unchanged(plans):
     assert "".join(s.kind[0] for s in paper.steps) == ref["steps"]
     # the same steps, their errors within 0.25 mm, not to the recorded 1 µm: the planner amplifies the
     # last digits of another CPU's floating point (BLAS kernels, MUMPS) into different contacts. The
-    # record (a25a936) is of a 2-core Intel Xeon VM: mean 1.819 mm, max 3.653 mm; before the rolling IK
-    # (00fc2a8), a 2-core AMD EPYC VM gave the same 22 steps with mean 1.868 mm, max 3.824 mm
+    # record (b243608) is of a 2-core AMD EPYC VM: 21 steps, mean 1.224 mm, max 1.867 mm; the one before
+    # (a25a936, goal tips from the contacts' normals), of a 2-core Intel Xeon VM, reproduced on AMD EPYC
+    # with the same steps and errors within 0.2 mm
     assert float(np.mean(err)) * 1e3 == pytest.approx(ref["mean_error_mm"], abs=0.25)
     assert float(np.max(err)) * 1e3 == pytest.approx(ref["max_error_mm"], abs=0.25)
     assert all(s.certificate is None for s in paper.steps)
