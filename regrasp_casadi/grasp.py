@@ -221,7 +221,8 @@ class Grasp:
                 (`tip_centers_object`, the planner's targets) are those of q, as for `from_joints`;
                 otherwise each contact pushed out along its surface normal. They differ at edges and
                 rims, where the normal is a blend of the faces': a problem file's goal written from a
-                generated pair keeps the generator's tip placement (cup pair of seed 0: 1.66 mm).
+                generated pair keeps the generator's tip placement (problems/cup_regrasp.yaml: the ring's
+                1.85 mm apart).
             tol: allowed |exact signed distance| of a contact, m.
 
         Raises:

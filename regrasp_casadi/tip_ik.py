@@ -133,8 +133,7 @@ def tip_ik(hand: Hand, q_start: NDArray, fingers: Sequence[str], p_palm_targets:
 
 
 def _reach_iks(hand: Hand, q: NDArray, finger: str, p_palm_target: NDArray,
-                     q_seeds: Sequence[NDArray | None] = ()
-                     ) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+               q_seeds: Sequence[NDArray | None] = ()) -> Iterator[tuple[NDArray, NDArray]]:
     """`tip_ik` of one finger's tip centre to `p_palm_target` (3,), palm frame, m, from several starts, in
     this order (lazily): q (n,) itself, q with that finger's joints taken from each of `q_seeds` ((n,) rad
     each; None skipped, e.g. the goal grasp's joints), and q with them at the middle of their ranges; the
