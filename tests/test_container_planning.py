@@ -32,7 +32,9 @@ def test_paper_planner_converges_on_the_cup_pair(problem, method):
     """Before the fingertips' wall model and the gaits' polish: "solver_failure", the middle finger held
     57 mm and the ring 76 mm from their goals (SVD). SD stalled with the object at its desired pose and the
     ring 74 mm from its goal until `long_gait`'s IK also started from the goal grasp's joints and the
-    middle of the ranges (`tip_ik.finger_reach_ik`). Now both converged and verified, and every final
+    middle of the ranges (`tip_ik.finger_reach_ik`), and, planned from this file, until the goal's tip
+    targets were its joints' tips (`Grasp.from_contacts`; the ring's 1.85 mm apart from contact + r·normal
+    at the rim: both methods stalled). Now both converged and verified, and every final
     contact is within ζ of its goal by trimesh's exact closest points (independent of the planner's
     geometry)."""
     plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, stability="none")
