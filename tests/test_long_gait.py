@@ -121,3 +121,65 @@ def test_the_stall_report_calls_out_of_reach_only_what_no_start_reaches(cup_ring
     far[hand.fingers.index("ring")] += goal.T_palm_object[:3, :3].T @ np.array([0.0, 0.0, 0.2])
     text = stalled_fingers(hand, cup.obj, q, goal.T_palm_object, far, error, 0.006, q_goal=goal.q)
     assert "out of its reach" in text
+
+
+JAMMED = Path(__file__).resolve().parent / "data" / "mug_ring_jammed.yaml"
+
+
+def _transit_dip(problem, path, finger: str, beta: float) -> float:
+    """How far (m) the finger's spheres keep above their transit floor over the path's transit knots, by
+    trimesh's exact distances: per sphere (tip included) its clearance minus min(β, its clearance at
+    the transit's two ends) — the rule of a transit (a sphere closer than β where the transit starts or
+    ends keeps no worse); the least over spheres and knots (< 0: a sphere dips below its floor)."""
+    hand, mesh = problem.hand, problem.obj.mesh
+    knots = sorted({i + d for i, ph in enumerate(path.phases) if ph == "transit" for d in (0, 1)})
+    radii = np.asarray(hand.sphere_radii(finger, include_tip=True))
+
+    def clearance(k):
+        T = path.T_palm_object[k]
+        c = (hand.sphere_centers(path.q[k], finger, include_tip=True) - T[:3, 3]) @ T[:3, :3]
+        return -trimesh.proximity.signed_distance(mesh, c) - radii
+
+    floor = np.minimum(beta, np.minimum(clearance(knots[0]), clearance(knots[-1])))
+    return float(min(np.min(clearance(k) - floor) for k in knots))
+
+
+def test_a_gait_started_at_the_goal_ik_gets_through_where_the_others_graze_the_mug():
+    """The ring of the generated mug pair of seed 1 (svd), 41.5 mm from its goal contact: OPT1 from its own
+    joints or from part of the way to its IK at the goal moves it η but its transit brings a sphere closer
+    to the mug than β (and than at the transit's ends); OPT1 started at that IK (the first start
+    `long_gait` tries) moves it η towards its goal with a transit that does not, by trimesh's exact
+    distances."""
+    from dataclasses import replace
+
+    from regrasp_casadi.plan import PlanStep
+    from regrasp_casadi.trajectory import motion_context, step_path
+
+    problem = RegraspProblem.load(JAMMED)
+    hand, obj, g0 = problem.hand, problem.obj, problem.grasp0
+    r, T, q = hand.fingers.index("ring"), g0.T_palm_object, g0.q
+    goal_tip = problem.grasp_goal.tip_centers_object[r]
+    options = PlannerOptions().finger_gait
+    nlp = FingerGaitNLP(hand, obj, "ring", options)
+    ctx = motion_context(hand, obj)
+    start = PlanStep("initial", None, q, T, g0.contacts_object, np.zeros(4), "", 0.0)
+    before = _exact_contact_error(problem, q, T, r)
+    assert before > 0.04
+
+    q_goal, e = finger_reach_ik(hand, q, "ring", T[:3, :3] @ goal_tip + T[:3, 3], [problem.grasp_goal.q])
+    assert np.linalg.norm(e) < 1e-3  # within reach at this pose
+    way = float(np.linalg.norm(goal_tip - g0.tip_centers_object[r]))
+    outcome = {}
+    for name, q_init in (("own", None), ("part way", q + options.eta / way * (q_goal - q)), ("ik", q_goal)):
+        res = nlp.solve(q, T, goal_tip, q_init=q_init)
+        assert res.success, name
+        assert np.linalg.norm(hand.tip_positions(res.q)[r] - hand.tip_positions(q)[r]) <= options.eta + 1e-6
+        path = step_path(ctx, start, replace(start, kind="gait", finger="ring", q=res.q))
+        outcome[name] = (path.ok, _transit_dip(problem, path, "ring", options.beta),
+                         _exact_contact_error(problem, res.q, T, r))
+    for name in ("own", "part way"):
+        ok, dip, _ = outcome[name]
+        assert not ok and dip < -5e-5, (name, outcome[name])  # (-0.11 mm)
+    ok, dip, after = outcome["ik"]
+    assert ok and dip >= -1e-5, outcome["ik"]
+    assert after < before - 0.005  # millimetres closer to its goal
