@@ -35,9 +35,10 @@ from regrasp_casadi.surface_way import SurfaceWay
 from regrasp_casadi.tip_ik import finger_reach_ik
 
 if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.planner import _Run
 
-__all__ = ["long_gait", "surface_gait", "SurfaceProgress", "MIN_WAY"]
+__all__ = ["long_gait", "surface_gait", "way_target", "SurfaceProgress", "MIN_WAY"]
 
 MIN_WAY = 0.001
 """Least shortening (m) of a finger's way to its goal over the surface for a surface gait to count."""
@@ -97,7 +98,7 @@ class SurfaceProgress:
 
 def surface_gait(run: _Run, finger: str) -> bool:
     """One gait of `finger` aimed at a way point η ahead of its contact on the way over the surface to its
-    goal contact (`_way_target`: a mesh point within η of the contact over the surface, nearest the goal
+    goal contact (`way_target`: a mesh point within η of the contact over the surface, nearest the goal
     by the distance over the surface; the tip-centre target ρ above it along its normal), taken
     when it brings the contact at least `MIN_WAY` nearer the goal over the surface and its path passes
     (`certified_round.accept_gait`). A gait that leaves the finger nearer its goal over the surface than any
@@ -110,7 +111,9 @@ def surface_gait(run: _Run, finger: str) -> bool:
         to_goal = sp.fields[finger] = sp.way.field(run.goal_contacts[r])
     contact = np.asarray(run.steps[-1].contacts_object[r], dtype=float)
     here = sp.way.distance(to_goal, contact)
-    res = _solve(run, finger, _way_target(run, sp.way, to_goal, contact, here, run.goal_tips[r]))
+    target = way_target(sp.way, run.obj, to_goal, contact, run.goal_tips[r],
+                        reach=run.options.finger_gait.eta, tip_radius=run.hand.tip_radius)
+    res = _solve(run, finger, target)
     if not res.success:
         return False
     moved, _ = run.obj.closest_points(res.p_object_tip[None])
@@ -123,20 +126,21 @@ def surface_gait(run: _Run, finger: str) -> bool:
     return True
 
 
-def _way_target(run: _Run, way: SurfaceWay, to_goal: NDArray, contact: NDArray, here: float,
-                goal_tip: NDArray) -> NDArray[np.float64]:
-    """The tip-centre target (3,), object frame, m, of a surface gait from `contact` (3,): ρ along the
-    normal above the mesh vertex within η of it over the surface nearest the goal by `to_goal`, among
-    those at least `MIN_WAY` nearer than `here` (m) from whose tip centre the straight line to `goal_tip`
-    (3,) stays out of the object, if any (over the rim first: on a bowl the way along the inner face and
-    then over the rim is as long as over the rim and along the outer face, and only the second leaves
-    OPT1 a straight pull to a goal outside); else the nearest of all (`SurfaceWay.way_point`)."""
-    ids = way.within(contact, run.options.finger_gait.eta)
-    tips = way.mesh.vertices[ids] + run.hand.tip_radius * way.mesh.vertex_normals[ids]
+def way_target(way: SurfaceWay, obj: ObjectModel, to_goal: NDArray, contact: NDArray, goal_tip: NDArray, *,
+               reach: float, tip_radius: float) -> NDArray[np.float64]:
+    """The tip-centre target (3,), object frame, m, of a surface gait from the surface point `contact`
+    (3,): `tip_radius` along the normal above the mesh vertex within `reach` (m) of it over the surface
+    nearest the goal by `to_goal` (`SurfaceWay.field`), among those at least `MIN_WAY` nearer than
+    `contact` from whose tip centre the straight line to `goal_tip` (3,) stays out of the object, if any
+    (over the rim first: on a bowl the way along the inner face and then over the rim is as long as over
+    the rim and along the outer face, and only the second leaves OPT1 a straight pull to a goal
+    outside); else the nearest of all (`SurfaceWay.way_point`)."""
+    ids = way.within(contact, reach)
+    tips = way.mesh.vertices[ids] + tip_radius * way.mesh.vertex_normals[ids]
     s = np.linspace(0.0, 1.0, 21)[1:-1, None]
     lines = tips[:, None, :] + s[None] * (goal_tip - tips)[:, None, :]
-    free = np.min(run.obj.exact_signed_distance(lines.reshape(-1, 3)).reshape(len(ids), -1), axis=1) > 0.0
-    free &= to_goal[ids] <= here - MIN_WAY
+    free = np.min(obj.exact_signed_distance(lines.reshape(-1, 3)).reshape(len(ids), -1), axis=1) > 0.0
+    free &= to_goal[ids] <= way.distance(to_goal, contact) - MIN_WAY
     pick = ids[free] if np.any(free) else ids
     k = int(pick[np.argmin(to_goal[pick])])
-    return way.mesh.vertices[k] + run.hand.tip_radius * way.mesh.vertex_normals[k]
+    return way.mesh.vertices[k] + tip_radius * way.mesh.vertex_normals[k]

@@ -67,3 +67,35 @@ def test_way_points_walk_over_the_rim_to_the_goal(cup):
     assert np.linalg.norm(points[-1] - goal) <= 2 * MAX_EDGE  # arrived
     assert np.max(points[:, 2]) >= z_top - 1e-9  # up to the top of the wall: over the rim, not through
     assert len(points) <= math.ceil(0.0563 / reach) + 3
+
+
+def test_a_surface_gait_from_inside_a_bowl_aims_over_the_rim_first():
+    """The index of the generated bowl pair of seed 3 stalled on the inner face, its goal on the outer: the
+    way point nearest the goal over the surface lies along the inner face, from where the goal is still
+    behind the wall; `way_target` picks one on the rim's top, from where the straight line to the goal
+    tip centre is clear of the bowl (trimesh's exact distances)."""
+    from pathlib import Path
+
+    from regrasp_casadi.long_gait import way_target
+    from regrasp_casadi.problem import RegraspProblem
+
+    problem = RegraspProblem.load(Path(__file__).parent / "data" / "bowl_index_inside_the_rim.yaml")
+    hand, mesh = problem.hand, problem.obj.mesh
+    mesh_mm = trimesh.Trimesh(mesh.vertices * 1e3, mesh.faces)  # (trimesh's tolerance: in mm, DESIGN.md)
+    r, rho = hand.fingers.index("index"), hand.tip_radius
+    contact, goal_tip = problem.grasp0.contacts_object[r], problem.grasp_goal.tip_centers_object[r]
+    way = SurfaceWay(mesh)
+    to_goal = way.field(problem.grasp_goal.contacts_object[r])
+
+    def blocked(tip):  # the deepest point of the straight line from tip to the goal tip inside the bowl, m
+        line = tip + np.linspace(0.0, 1.0, 41)[:, None] * (goal_tip - tip)
+        return float(np.max(trimesh.proximity.signed_distance(mesh_mm, line * 1e3))) * 1e-3  # > 0 inside
+
+    assert blocked(problem.grasp0.tip_centers_object[r]) > 0.001  # the wall between (2.0 mm deep)
+    nearest, n = way.way_point(to_goal, contact, 0.01)
+    assert blocked(nearest + rho * n) > 0.0005
+    target = way_target(way, problem.obj, to_goal, contact, goal_tip, reach=0.01, tip_radius=rho)
+    assert blocked(target) < -0.0005
+    closest, distance, _ = trimesh.proximity.closest_point(mesh_mm, target[None] * 1e3)
+    assert abs(distance[0] * 1e-3 - rho) < 2e-4  # the tip centre ρ off the surface
+    assert closest[0, 2] * 1e-3 >= float(mesh.bounds[1, 2]) - 0.002  # on the rim's top
