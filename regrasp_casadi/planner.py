@@ -27,7 +27,7 @@ from regrasp_casadi.hand_orientation import pinned_opposer_hint
 from regrasp_casadi.holding import STABILITY_KINDS, Holding
 from regrasp_casadi.in_grasp import InGraspNLP, svd_target, trust_region
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
-from regrasp_casadi.long_gait import SurfaceProgress, long_gait
+from regrasp_casadi.long_gait import long_gait
 from regrasp_casadi.nlp_cache import NLPCache, clear_built_solvers
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions
@@ -87,13 +87,12 @@ class _ProgressWatch:
         self.stalled = 0
         """Iterations since then."""
 
-    def update(self, error: float, made_way: bool = False) -> None:
-        """Record the largest contact error (m) after an iteration; `made_way`: a finger got nearer its
-        goal over the surface than ever (`long_gait.surface_gait`), which holds the count at the escape."""
+    def update(self, error: float) -> None:
+        """Record the largest contact error (m) after an iteration."""
         if error < self.best - self.options.stall_tol:
             self.best, self.stalled = error, 0
         else:
-            self.stalled = min(self.stalled + 1, self.options.stall_escape) if made_way else self.stalled + 1
+            self.stalled += 1
 
     @property
     def escape(self) -> bool:
@@ -134,8 +133,6 @@ class _Run:
         self.iterations = 0
         self.stalled = 0
         """Iterations since the largest contact error last dropped (`_ProgressWatch.stalled`)."""
-        self.surface: SurfaceProgress | None = None
-        """The ways over the surface of `long_gait.surface_gait` (built when first needed)."""
         self.staging_on = False
         """Whether the certified round stages pinned fingers (`staging`): a stalled plan's last resort."""
         self.staging = None
@@ -410,7 +407,7 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
         run.errors.append(float(np.mean(run.steps[-1].contact_error)))
         if progress is not None:
             progress(run.iterations, options.max_iters, run.errors[-1])
-        watch.update(run.largest_error(), run.surface is not None and run.surface.take_made_way())
+        watch.update(run.largest_error())
         if stop.requested:
             return _make_plan(grasp0, grasp_goal, options, t_start, run, "interrupted",
                               f"interrupted (Ctrl-C) after {run.iterations} iterations; largest contact "
