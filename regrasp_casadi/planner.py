@@ -418,7 +418,8 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
             hint = pinned_opposer_hint(run.obj, run.fingers, run.steps[-1], options.zeta) \
                 if options.stability == "force_closure" else ""
             hint += stalled_fingers(run.hand, run.obj, run.q, run.T_palm_object, run.goal_tips,
-                                    run.steps[-1].contact_error, options.zeta, q_goal=run.q_goal)
+                                    run.steps[-1].contact_error, options.zeta, q_goal=run.q_goal,
+                                    eta=options.finger_gait.eta)
             if run.failures and len(run.steps) == n_steps_before:  # the last iteration could not move
                 return end("solver_failure", "; ".join(run.failures) + hint)
             return end("stalled", f"largest contact error {run.largest_error() * 1e3:.2f} mm > ζ: no "

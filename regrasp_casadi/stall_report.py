@@ -9,6 +9,11 @@ than ζ, from checks independent of the NLPs at the plan's last grasp, for the p
 * **Out of reach**: the finger's tip cannot be put on its goal at the current object pose within the
   joint limits (damped least-squares IK, `tip_ik`, collisions ignored), or only with one of its other
   collision spheres in the object (exact distance): the object must move first.
+* **No nearer point within η** (with `eta`): no point of the surface within η of the finger's contact is
+  much nearer its goal contact (the mesh subdivided to η/5, its vertices within η): a gait moves a
+  contact at most η, and the way to the goal leaves the surface — across a cup's mouth, say — or goes
+  the long way round it (measured: the generated cup pair of seed 4, SD, the ring on the rim 74.4 mm
+  from its goal on the opposite rim: the best point within η is 2.1 mm nearer).
 
     >>> stalled_fingers(hand, obj, q, T_palm_object, goal_tips_object, contact_error, zeta)
     '; not at their goals: ring 37.8 mm (the object lies between its tip and its goal: ...)'
@@ -27,15 +32,19 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
 
-__all__ = ["stalled_fingers", "REACH_TOL"]
+__all__ = ["stalled_fingers", "REACH_TOL", "OFF_SURFACE_GAIN"]
 
 REACH_TOL = 1e-3
 """A finger whose IK gets its tip centre no closer than this to its goal cannot reach it, m."""
 
+OFF_SURFACE_GAIN = 0.25
+"""A finger whose best surface point within η of its contact is less than this part of η nearer its goal
+contact is reported (on a face towards the goal the best is η nearer)."""
+
 
 def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDArray,
                     goal_tips_object: NDArray, contact_error: NDArray, zeta: float, *,
-                    n_samples: int = 41, q_goal: NDArray | None = None) -> str:
+                    n_samples: int = 41, q_goal: NDArray | None = None, eta: float | None = None) -> str:
     """"; not at their goals: <finger> <error> mm (<why>) | ..." for every finger whose contact error
     exceeds `zeta`, or "" when none does.
 
@@ -50,6 +59,8 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
         n_samples: samples of each straight tip-to-goal line.
         q_goal: (n,) the goal grasp's joints, rad, if known: a further start of the reach IK
             (`tip_ik.finger_reach_ik`).
+        eta: η, m: when given, a finger whose surface gains less than `OFF_SURFACE_GAIN` × η towards its
+            goal within η of its contact is reported so (module docstring).
     """
     R, t = np.asarray(T_palm_object, float)[:3, :3], np.asarray(T_palm_object, float)[:3, 3]
     tips = (np.asarray(hand.tip_positions(q), float) - t) @ R
@@ -80,5 +91,27 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
             if depth < 0.0:
                 why.append(f"at this object pose its tip reaches the goal only with a link "
                            f"{-depth * 1e3:.1f} mm in the object")
+        if eta is not None:
+            gain = _best_gain(obj, tips[r], goal, eta)
+            if gain < OFF_SURFACE_GAIN * eta:
+                why.append(f"a gait moves its contact at most η = {eta * 1e3:.1f} mm, and no point of the "
+                           f"surface that near is more than {gain * 1e3:.1f} mm nearer its goal")
         parts.append(f"{finger} {contact_error[r] * 1e3:.1f} mm" + (f" ({'; '.join(why)})" if why else ""))
     return "; not at their goals: " + " | ".join(parts) if parts else ""
+
+
+def _best_gain(obj: ObjectModel, tip_object: NDArray, goal_tip_object: NDArray, eta: float) -> float:
+    """How much nearer (m) the goal contact (the closest point of `goal_tip_object` (3,)) the surface point
+    within `eta` (m) of the contact (the closest point of `tip_object` (3,)) nearest it is: over the
+    vertices of the mesh subdivided to eta / 5 (object frame)."""
+    import trimesh  # (only when a plan stalls)
+
+    (contact, goal), _ = obj.closest_points(np.stack([tip_object, goal_tip_object]))
+    triangles = np.asarray(obj.mesh.triangles, float)
+    on_face = trimesh.triangles.closest_point(triangles, np.repeat(contact[None], len(triangles), axis=0))
+    faces = np.asarray(obj.mesh.faces)[np.linalg.norm(on_face - contact, axis=1) <= eta]  # those within η
+    v, _ = trimesh.remesh.subdivide_to_size(np.asarray(obj.mesh.vertices, float), faces, max_edge=eta / 5.0)
+    near = v[np.linalg.norm(v - contact, axis=1) <= eta]
+    if not len(near):
+        return 0.0
+    return float(np.linalg.norm(contact - goal) - np.min(np.linalg.norm(near - goal, axis=1)))

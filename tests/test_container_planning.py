@@ -104,3 +104,26 @@ def test_refused_gait_is_tried_again_shorter(monkeypatch):
     run, added, asked = _run(longest_ok=0.001)
     assert not accept_gait(run, "ring", _Gait(0.01))
     assert asked == [0.005, 0.0025] and not added and "transit clearance" in run.failures[0]
+
+
+def test_stall_report_names_a_goal_no_gait_gets_nearer():
+    """The generated cup pair of seed 4 (SD) stalled with the ring on the rim, its goal on the opposite rim
+    74 mm away across the cup's mouth: a gait moves a contact at most η = 10 mm, and no point of the cup
+    within η of the ring's contact is more than a quarter of η nearer its goal — by trimesh's even surface
+    samples (a 0.5 mm Poisson-disk radius) as by the report's own subdivision. The other fingers, at
+    their goals, are not named."""
+    problem = RegraspProblem.load(Path(__file__).parent / "data" / "cup_ring_across_the_mouth.yaml")
+    hand, obj, g0, gg = problem.hand, problem.obj, problem.grasp0, problem.grasp_goal
+    error = np.linalg.norm(g0.contacts_object - gg.contacts_object, axis=1)
+    r = hand.fingers.index("ring")
+    assert error[r] > 0.07 and np.all(np.delete(error, r) < 0.006)
+    text = stalled_fingers(hand, obj, g0.q, g0.T_palm_object, gg.tip_centers_object, error, 0.006,
+                           q_goal=gg.q, eta=0.01)
+    assert text.startswith("; not at their goals: ring") and "|" not in text
+    assert "a gait moves its contact at most η = 10.0 mm" in text
+    samples, _ = trimesh.sample.sample_surface_even(obj.mesh, 400_000, radius=5e-4, seed=0)
+    near = samples[np.linalg.norm(samples - g0.contacts_object[r], axis=1) <= 0.01]
+    assert len(near) > 50
+    gain = error[r] - np.min(np.linalg.norm(near - gg.contacts_object[r], axis=1))
+    assert gain < 0.0025  # (2.1 mm)
+    assert "lies between" not in text and "out of its reach" not in text  # none of the other reasons

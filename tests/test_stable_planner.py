@@ -228,9 +228,9 @@ def test_the_paper_planner_is_unchanged(plans):
     assert "".join(s.kind[0] for s in paper.steps) == ref["steps"]
     # the same steps, their errors within 0.25 mm, not to the recorded 1 µm: the planner amplifies the
     # last digits of another CPU's floating point (BLAS kernels, MUMPS) into different contacts. The
-    # record (b243608) is of a 2-core AMD EPYC VM: 21 steps, mean 1.224 mm, max 1.867 mm; the one before
-    # (a25a936, goal tips from the contacts' normals), of a 2-core Intel Xeon VM, reproduced on AMD EPYC
-    # with the same steps and errors within 0.2 mm
+    # record (b243608; box_shift's the same at 841a46d) is of a 2-core AMD EPYC VM: 21 steps, mean
+    # 1.224 mm, max 1.867 mm; the one before (a25a936, goal tips from the contacts' normals), of a 2-core
+    # Intel Xeon VM, reproduced on AMD EPYC with the same steps and errors within 0.2 mm
     assert float(np.mean(err)) * 1e3 == pytest.approx(ref["mean_error_mm"], abs=0.25)
     assert float(np.max(err)) * 1e3 == pytest.approx(ref["max_error_mm"], abs=0.25)
     assert all(s.certificate is None for s in paper.steps)
