@@ -9,6 +9,10 @@ pairs converged and verified per class and method.
 
     nice -n 10 python benchmarks/objects.py [--pairs 3] [--budget 60] [--classes sphere flat_tool ...]
                                             [--no-plan] [--append] [--out FILE] [--stability none]
+                                            [--workers 2]
+
+`--workers N` runs the classes in N worker processes (one class per process at a time; each class's
+pairs and plans are those of a serial run, the records in the classes' order).
 
 Writes each class's record with `machine.machine_info()` (CPU, load, versions, git commit) to
 benchmarks/results/objects.json and prints a Markdown table (the one in benchmarks/README.md).
@@ -130,6 +134,31 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _run_one(name: str, args: argparse.Namespace) -> dict:
+    """One class's record (`run_class`) with the machine and the run's settings (a worker's job)."""
+    sys.path.insert(0, str(HERE))
+    from machine import machine_info
+
+    record = run_class(Hand.allegro_right(), name, args.pairs, args.budget, not args.no_plan, args.stability)
+    record.update(machine=machine_info(), pairs_asked=args.pairs, budget_s=args.budget,
+                  stability=args.stability)
+    return record
+
+
+def _records(args: argparse.Namespace):
+    """Yield the classes' records as they are done: in this process, or in `--workers` processes."""
+    if args.workers <= 1:
+        for name in args.classes:
+            yield _run_one(name, args)
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        for done in as_completed([pool.submit(_run_one, name, args) for name in args.classes]):
+            yield done.result()
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pairs", type=int, default=3)
@@ -141,18 +170,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=pathlib.Path, default=HERE / "results" / "objects.json")
     parser.add_argument("--append", action="store_true",
                         help="keep the records of the classes not run from an existing --out file")
+    parser.add_argument("--workers", type=int, default=1, help="worker processes (classes in parallel)")
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(HERE))
-    from machine import machine_info
-
-    hand = Hand.allegro_right()
     records = []
     if args.append and args.out.is_file():  # keep the other classes' records (each carries its machine)
         records = [r for r in json.loads(args.out.read_text())["records"] if r["class"] not in args.classes]
-    for name in args.classes:
-        record = run_class(hand, name, args.pairs, args.budget, not args.no_plan, args.stability)
-        record.update(machine=machine_info(), pairs_asked=args.pairs, budget_s=args.budget,
-                      stability=args.stability)
+    for record in _records(args):
         records.append(record)
         records.sort(key=lambda r: list(CLASSES).index(r["class"]))
         args.out.parent.mkdir(parents=True, exist_ok=True)
