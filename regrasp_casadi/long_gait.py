@@ -23,7 +23,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from regrasp_casadi.certified_round import accept_gait
 from regrasp_casadi.stall_report import REACH_TOL
@@ -51,19 +50,14 @@ def long_gait(run: _Run, finger: str) -> bool:
     if float(np.linalg.norm(e)) > REACH_TOL:
         return False
     eta = run.options.finger_gait.eta
-    for q_init in (q_goal, run.q + min(1.0, eta / way) * (q_goal - run.q)):  # at its IK, then η on the way
-        res = _solve(run, finger, goal_object, q_init)
+    # at its IK, then about η of the way there (within η of the goal, that start is the IK itself)
+    starts = [q_goal] if way <= eta else [q_goal, run.q + eta / way * (q_goal - run.q)]
+    for q_init in starts:
+        res = run.gait_nlps[finger].solve(run.q, T, goal_object, q_init=q_init)
+        run.timing["opt1"] += res.solve_time
+        run.solves["opt1"] += res.solves
         contact, _ = run.obj.closest_points(res.p_object_tip[None])
         closer = np.linalg.norm(contact[0] - run.goal_contacts[r]) < run.steps[-1].contact_error[r]
         if res.success and closer and accept_gait(run, finger, res):
             return True
     return False
-
-
-def _solve(run: _Run, finger: str, p_object_tip_goal: NDArray, q_init: NDArray | None = None):
-    """OPT1 of `finger` towards `p_object_tip_goal` (3,), object frame, m, from `q_init` (n,) rad, with
-    its time and solves counted in `run`."""
-    res = run.gait_nlps[finger].solve(run.q, run.T_palm_object, p_object_tip_goal, q_init=q_init)
-    run.timing["opt1"] += res.solve_time
-    run.solves["opt1"] += res.solves
-    return res
