@@ -19,9 +19,11 @@ smooth curve.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
@@ -33,8 +35,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = ["Rolling", "rolling_tip_ik", "tip_angular_jacobian"]
 
-FD_STEP = 1e-7
-"""Joint step of the angular Jacobian's finite differences, rad."""
+_OMEGA_JACOBIANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""Hand -> its `_omega_jacobian_function`, built once per hand."""
 
 BACKTRACKS = 6
 """Halvings of a step that does not reduce the tip error before `rolling_tip_ik` stops."""
@@ -61,18 +63,33 @@ class Rolling:
         return self.p_from + self.radius * np.cross(theta, self.normals) + self.offset, theta
 
 
+def _omega_jacobian_function(hand: Hand) -> ca.Function:
+    """q (n,) -> (3m, n) d ω_tip / d q of every tip link (palm frame, rows 3i..3i+2 the tip of
+    ``hand.fingers[i]``), exact: column j is vee(∂R/∂q_j Rᵀ), from the symbolic tip-link rotations R(q)."""
+    fn = _OMEGA_JACOBIANS.get(hand)
+    if fn is None:
+        q = ca.SX.sym("q", hand.n_joints)
+        R_tips = hand.tip_rotations_function()(q)  # (3, 3m), the tip links side by side
+        rows = []
+        for i in range(len(hand.fingers)):
+            R = R_tips[:, 3 * i : 3 * i + 3]
+            dR = [ca.jacobian(R[:, c], q) for c in range(3)]  # dR[c][a, j] = ∂R[a, c] / ∂q_j
+
+            def skew(a: int, b: int) -> ca.SX:  # (∂R/∂q Rᵀ)[a, b] for every joint, (1, n)
+                return sum(dR[c][a, :] * R[b, c] for c in range(3))  # noqa: B023 (used at once)
+
+            rows += [skew(2, 1), skew(0, 2), skew(1, 0)]
+        fn = ca.Function("J_omega_tips", [q], [ca.densify(ca.vertcat(*rows))], ["q"], ["J_omega_tips"],
+                         {"cse": True})
+        _OMEGA_JACOBIANS[hand] = fn
+    return fn
+
+
 def tip_angular_jacobian(hand: Hand, q: NDArray, joints: NDArray) -> NDArray[np.float64]:
-    """(m, 3, len(joints)) d ω_tip / d q_joints of every tip link, palm frame, rad/rad (forward
-    differences of `Hand.tip_rotations`, one step per joint for all fingers at once)."""
-    R0t = np.transpose(hand.tip_rotations(q), (0, 2, 1))
-    out = np.empty((len(hand.fingers), 3, len(joints)))
-    for c, j in enumerate(joints):
-        dq = np.array(q, dtype=float)
-        dq[j] += FD_STEP
-        D = hand.tip_rotations(dq) @ R0t  # ≈ I + [ω h]×
-        out[:, :, c] = np.stack([D[:, 2, 1] - D[:, 1, 2], D[:, 0, 2] - D[:, 2, 0], D[:, 1, 0] - D[:, 0, 1]],
-                                axis=1) / (2.0 * FD_STEP)
-    return out
+    """(m, 3, len(joints)) d ω_tip / d q_joints of every tip link, palm frame, rad/rad: exact (the
+    derivatives of the symbolic tip-link rotations, `_omega_jacobian_function`)."""
+    J = np.asarray(_omega_jacobian_function(hand)(np.asarray(q, dtype=float)), dtype=float)
+    return J.reshape(len(hand.fingers), 3, -1)[:, :, joints]
 
 
 def _inv_left_jacobian(theta: NDArray) -> NDArray[np.float64]:
