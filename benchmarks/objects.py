@@ -136,7 +136,8 @@ def markdown(rows: list[dict]) -> str:
 
 def _run_one(name: str, args: argparse.Namespace) -> dict:
     """One class's record (`run_class`) with the machine and the run's settings (a worker's job)."""
-    sys.path.insert(0, str(HERE))
+    if str(HERE) not in sys.path:  # (a spawned worker starts without the benchmarks folder on its path)
+        sys.path.insert(0, str(HERE))
     from machine import machine_info
 
     record = run_class(Hand.allegro_right(), name, args.pairs, args.budget, not args.no_plan, args.stability)
