@@ -31,6 +31,7 @@ from regrasp_casadi.long_gait import long_gait
 from regrasp_casadi.nlp_cache import NLPCache, clear_built_solvers
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions
+from regrasp_casadi.reposture import reposture_round
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.stall_report import stalled_fingers
 from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories, motion_context, step_path
@@ -376,11 +377,12 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
 def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
              progress: ProgressCallback | None, stop: InterruptRequest) -> Plan:
     """Algorithm 1's loop: gait rounds and reposings until the contacts are within ζ, then the final
-    moves (and, when they stop short, `_polish` and the final moves again, or `_regait` and on), the
-    iteration limit, a stall, or a Ctrl-C (`stop`: the plan so far, status "interrupted")."""
+    moves (and, when they stop short, re-posture gaits (`reposture`) or `_polish` and the final moves
+    again, or `_regait` and on), the iteration limit, a stall, or a Ctrl-C (`stop`: the plan so far,
+    status "interrupted")."""
     watch = _ProgressWatch(options, run.largest_error())
     back: _Fallback | None = None  # the run's state before the last `_regait`
-    polished = 0  # `_polish` rounds so far
+    polished = repostured = 0  # `_polish` and `_reposture` rounds so far
 
     def end(status: str, detail: str) -> Plan:  # a plan that did not converge: before a failed regait
         if back is None:
@@ -390,6 +392,9 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
     while run.iterations < options.max_iters:
         if run.largest_error() <= options.zeta:
             outcome = run_final_moves(run, options) if options.final_move else FinalMoves("not_run", 0, ())
+            if repostured < options.final_reposture and reposture_round(run, outcome):
+                repostured += 1
+                continue
             if polished < options.final_polish and _polish(run, options, outcome):
                 polished += 1
                 continue

@@ -120,17 +120,19 @@ def test_reposing_with_rolling_tips_does_not_slide_them(problem):
 def test_final_moves_that_roll_the_contacts_away_are_followed_by_gaits(problem):
     """box_rotate (paper planner, svd): the contacts reach ζ with the box 24° from the desired pose; a
     final move towards it rolls a contact 9.8 mm from its goal, so the final moves stop there
-    ("pose_not_reached, ... stopped: contact drift" with `final_regait=False`). With it, the planner
+    ("pose_not_reached, ... stopped: contact drift" with `final_regait=False` and no re-posture gaits,
+    which also get it there, `test_reposture`). With it, the planner
     reposes towards the desired pose anyway and gaits the contacts back: a final move, then a reposing
     and gaits; converged, judged by verify (slip and motion included)."""
     from regrasp_casadi.planner import plan_regrasp
     from regrasp_casadi.verify import verify
 
     without = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", stability="none",
-                           final_regait=False)
+                           final_regait=False, final_reposture=0)
     assert without.status == "pose_not_reached", without.status_detail
     assert "contact drift" in without.status_detail
-    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", stability="none")
+    plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", stability="none",
+                        final_reposture=0)
     assert plan.status == "converged", plan.status_detail
     kinds = "".join(s.kind[0] for s in plan.steps)
     assert "fr" in kinds and kinds.index("fr") < kinds.rindex("g")  # a final move, a reposing, gaits

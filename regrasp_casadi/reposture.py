@@ -1,0 +1,98 @@
+"""Re-posture gaits: a finger put back on its goal contact in the goal grasp's posture, when the final
+moves stop short of the desired object pose.
+
+A finger of the Allegro hand reaches a point with a one-parameter family of postures (three flexion
+joints for a point in the finger's plane), and the planner's gaits keep the posture they start from:
+OPT1 is local, so a finger that came to its goal contact bent at its distal joint stays bent, where the
+goal grasp has it straight. The contacts are then within ζ of their goals but the hand is not in the
+goal grasp's configuration, and the final moves (OPT2 towards the desired pose, the contacts held)
+stall against a joint limit of such a finger: measured on the generated objects, ten pairs per class,
+SVD, paper planner (`benchmarks/objects.py`), mug seeds 5 and 9 and flat tool seed 8 ended
+"pose_not_reached" 4.85 mm / 9.95°, 2.75 mm / 1.89° and 9.53 mm / 6.14° from the desired pose, each
+with one finger 0.96–1.81 rad from its goal posture at a joint (mug 9: the ring's third joint at its
+lower limit, the final moves gaining 0.04 mm per move). Turning the finger in place is not a way out:
+its tip would slide its material over the object by ρ θ (`grasp_metrics.tip_slip`).
+
+`reposture_round` lifts each such finger (largest posture difference first) and puts it down on its
+goal contact again (OPT1 towards the goal tip centre, started at the finger's IK there from the goal
+grasp's joints, `tip_ik.finger_reach_ik`), a gait like any other: its exact checks, its lift-off /
+transit / touch-down path (`certified_round.accept_gait`) and, with stability on, a certified holding
+set while it is lifted. The planner then runs the final moves again (`planner._iterate`).
+
+    >>> moved = reposture_round(run, outcome)  # run: the planner's `_Run`; outcome: its final moves'
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from regrasp_casadi.certified_round import accept_gait
+from regrasp_casadi.stall_report import REACH_TOL
+from regrasp_casadi.tip_ik import finger_reach_ik
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.final_moves import FinalMoves
+    from regrasp_casadi.planner import _Run
+
+__all__ = ["POSTURE_TOL", "POSTURE_GAIN", "posture_distance", "reposture_round"]
+
+POSTURE_TOL = 0.3
+"""A finger whose joints are farther than this from the goal grasp's (largest joint difference) is
+re-postured, rad."""
+POSTURE_GAIN = 0.1
+"""A re-posture gait is taken only when it brings the finger's largest joint difference from the goal
+grasp's down by at least this much, rad."""
+
+
+def posture_distance(run: _Run, q: np.ndarray, finger: str) -> float:
+    """Largest |q_j − q_goal_j| over `finger`'s joints (q (n,) rad against the goal grasp's), rad."""
+    idx = run.hand.finger_joints[finger]
+    return float(np.max(np.abs(q[idx] - run.q_goal[idx])))
+
+
+def reposture_round(run: _Run, outcome: FinalMoves) -> bool:
+    """After final moves that stopped short of the desired pose (`outcome`), one re-posture gait for
+    every finger farther than `POSTURE_TOL` from the goal grasp's posture, the farthest first (see the
+    module docstring); True when one was taken (an iteration of the run's own: the planner's loop ends
+    within `max_iters`). Nothing is tried without the goal grasp's joints or iterations left."""
+    if (outcome.stop in ("reached", "not_run", "time_budget") or run.q_goal is None
+            or run.iterations >= run.options.max_iters):
+        return False
+    far = {f: posture_distance(run, run.q, f) for f in run.fingers}
+    moved = False
+    for finger in sorted((f for f in far if far[f] > POSTURE_TOL), key=lambda f: -far[f]):
+        moved |= _reposture(run, finger)
+    if moved:
+        run.iterations += 1
+        run.errors.append(float(np.mean(run.steps[-1].contact_error)))
+    return moved
+
+
+def _reposture(run: _Run, finger: str) -> bool:
+    """The re-posture gait of `finger`; True when it was taken. Not tried when the goal tip centre is out
+    of reach from the goal grasp's joints at this object pose, or that IK is no nearer the goal posture;
+    with stability on, when the other fingers do not hold the object without it."""
+    r, hand, T = run.fingers.index(finger), run.hand, run.T_palm_object
+    certificate = None
+    if run.holding is not None:
+        certificate = run.holding.lift(run.q, T, finger)
+        if not run.holding.certified(certificate):
+            return False
+    before = posture_distance(run, run.q, finger)
+    q_start = run.q.copy()
+    idx = hand.finger_joints[finger]
+    q_start[idx] = run.q_goal[idx]
+    q_init, e = finger_reach_ik(hand, q_start, finger, T[:3, :3] @ run.goal_tips[r] + T[:3, 3], tol=REACH_TOL)
+    if float(np.linalg.norm(e)) > REACH_TOL or posture_distance(run, q_init, finger) > before - POSTURE_GAIN:
+        return False
+    res = run.gait_nlps[finger].solve(run.q, T, run.goal_tips[r], q_init=q_init)
+    run.timing["opt1"] += res.solve_time
+    run.solves["opt1"] += res.solves
+    if not res.success or posture_distance(run, res.q, finger) > before - POSTURE_GAIN:
+        return False
+    contact, _ = run.obj.closest_points(res.p_object_tip[None])
+    if float(np.linalg.norm(contact[0] - run.goal_contacts[r])) > run.options.zeta:
+        return False
+    return accept_gait(run, finger, res, certificate)
