@@ -1,0 +1,80 @@
+"""Re-posture gaits (`reposture`): the generated mug pair of seed 9 (paper planner, svd) where its final
+moves stalled, the contacts at their goals and the ring bent unlike the goal grasp (its third joint at
+its lower limit, 0.96 rad from the goal's). Lifted and put down on its goal contact in the goal's
+posture, the fingers let the final moves reach the desired pose."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from regrasp_casadi.final_moves import pose_distance, run_final_moves
+from regrasp_casadi.planner import NLPCache, PlannerOptions, _Run, plan_regrasp
+from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.reposture import POSTURE_GAIN, POSTURE_TOL, reposture_round
+from regrasp_casadi.verify import verify
+
+BENT = Path(__file__).resolve().parent / "data" / "mug_ring_bent_at_goal.yaml"
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return RegraspProblem.load(BENT)
+
+
+def _posture_gap(problem, q, finger):
+    """Largest |q_j − q_goal_j| over the finger's joints, rad."""
+    joints = problem.hand.finger_joints[finger]
+    return float(np.max(np.abs(np.asarray(q)[joints] - np.asarray(problem.grasp_goal.q)[joints])))
+
+
+def _exact_contacts(problem, q, T):
+    """(m, 3) trimesh's closest points of the tip centres on the mesh, object frame, and their tip
+    centres' signed distances (m,) (> 0 outside), m."""
+    tips = (problem.hand.tip_positions(q) - T[:3, 3]) @ T[:3, :3]
+    closest, _, _ = trimesh.proximity.closest_point(problem.obj.mesh, tips)
+    return closest, -trimesh.proximity.signed_distance(problem.obj.mesh, tips)
+
+
+def test_the_final_moves_reach_the_pose_once_the_bent_fingers_are_put_back(problem):
+    hand, goal = problem.hand, problem.grasp_goal
+    options = PlannerOptions(method="svd", stability="none")
+    run = _Run(problem.grasp0, goal, options, NLPCache(max_size=8))
+    gaps = {f: _posture_gap(problem, run.q, f) for f in hand.fingers}
+    assert gaps["ring"] > 0.9  # the stalled state: the ring bent unlike the goal grasp
+
+    stalled = run_final_moves(run, options)
+    assert stalled.stop != "reached"
+    before = pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj)
+    assert before > 0.01  # 16.7 mm: no final move gets the object on
+
+    n_steps = len(run.steps)
+    assert reposture_round(run, stalled)
+    gaits = run.steps[n_steps:]
+    assert gaits and all(s.kind == "gait" and s.path is not None and s.path.ok for s in gaits)
+    for a, b in zip(run.steps[n_steps - 1:], gaits, strict=False):
+        moved = np.flatnonzero(np.abs(b.q - a.q) > 0)
+        assert set(moved) <= set(hand.finger_joints[b.finger])  # only the lifted finger's joints
+        assert gaps[b.finger] > POSTURE_TOL
+        assert _posture_gap(problem, b.q, b.finger) <= gaps[b.finger] - POSTURE_GAIN
+        np.testing.assert_array_equal(b.T_palm_object, a.T_palm_object)  # the object stays
+    contacts, sd = _exact_contacts(problem, run.q, run.T_palm_object)
+    assert np.all(np.linalg.norm(contacts - goal.contacts_object, axis=1) <= options.zeta)
+    assert np.all(np.abs(sd - hand.tip_radius) <= 5e-4)  # every tip on the mug
+
+    after = run_final_moves(run, options)
+    assert after.distances[-1] < 0.25 * before  # the object moves on towards the desired pose
+
+
+@pytest.mark.slow  # two plans of the mug: in the slow run
+def test_the_stalled_plan_converges_with_reposture_and_not_without(problem):
+    g0, goal = problem.grasp0, problem.grasp_goal
+    without = plan_regrasp(g0, goal, method="svd", stability="none", final_reposture=0)
+    assert without.status == "pose_not_reached", without.status_detail
+    plan = plan_regrasp(g0, goal, method="svd", stability="none")
+    assert plan.status == "converged", plan.status_detail
+    assert verify(plan, problem.hand, problem.obj).ok
+    assert any(s.kind == "gait" for s in plan.steps)
