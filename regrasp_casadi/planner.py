@@ -377,8 +377,8 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
 def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
              progress: ProgressCallback | None, stop: InterruptRequest) -> Plan:
     """Algorithm 1's loop: gait rounds and reposings until the contacts are within ζ, then the final
-    moves (and, when they stop short, re-posture gaits (`reposture`) or `_polish` and the final moves
-    again, or `_regait` and on), the iteration limit, a stall, or a Ctrl-C (`stop`: the plan so far,
+    moves (and, when they stop short, `_polish`, else re-posture gaits (`reposture`), and the final
+    moves again, or `_regait` and on), the iteration limit, a stall, or a Ctrl-C (`stop`: the plan so far,
     status "interrupted")."""
     watch = _ProgressWatch(options, run.largest_error())
     back: _Fallback | None = None  # the run's state before the last `_regait`
@@ -392,11 +392,11 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
     while run.iterations < options.max_iters:
         if run.largest_error() <= options.zeta:
             outcome = run_final_moves(run, options) if options.final_move else FinalMoves("not_run", 0, ())
-            if repostured < options.final_reposture and reposture_round(run, outcome):
-                repostured += 1
-                continue
             if polished < options.final_polish and _polish(run, options, outcome):
                 polished += 1
+                continue
+            if repostured < options.final_reposture and reposture_round(run, outcome):
+                repostured += 1
                 continue
             state = _Fallback(len(run.steps), run.q, run.T_palm_object, outcome, run.iterations)
             if not _regait(run, options, outcome):

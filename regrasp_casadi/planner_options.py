@@ -74,10 +74,11 @@ class PlannerOptions:
     their way (its joints, the fingers' self-clearance). Not after a contact drift (`final_regait`'s
     case). 0: none."""
     final_reposture: int = 3
-    """When the final moves stop short of the desired pose, this many rounds of re-posture gaits (each
-    followed by the final moves again): a finger farther than `reposture.POSTURE_TOL` from the goal
-    grasp's posture is lifted and put down on its goal contact in that posture (`reposture`; the final
-    moves stall against the joint limits of a finger bent unlike the goal grasp's). 0: none."""
+    """When the final moves stop short of the desired pose and the `final_polish` rounds are spent or
+    moved no finger, this many rounds of re-posture gaits (each followed by the final moves again): a
+    finger farther than `reposture.POSTURE_TOL` from the goal grasp's posture is lifted and put down on
+    its goal contact in that posture (`reposture`; the final moves stall against the joint limits of a
+    finger bent unlike the goal grasp's). 0: none."""
     final_time_budget: float = 60.0
     """Time the final in-grasp moves may take, s (as many moves as fit; each is bounded by the OPT2
     trust region)."""
