@@ -128,8 +128,9 @@ def pair_distances(hand: Hand, centers: NDArray, pairs) -> NDArray[np.float64]:
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
     radii = np.array([s.radius for s in hand.spheres])
     a, b = pairs[:, 0], pairs[:, 1]
-    gap = np.linalg.norm(centers[..., a, :] - centers[..., b, :], axis=-1)
-    return gap - radii[a] - radii[b]
+    d = np.moveaxis(centers, -1, 0)  # (3, ..., k): sums of squares per coordinate plane take half the
+    d = d[..., a] - d[..., b]  # time of np.linalg.norm over the last axis (8000 x 1653 pairs: 0.28 / 0.58 s)
+    return np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) - (radii[a] + radii[b])
 
 
 def distance_extremes(hand: Hand, pairs, Q: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
