@@ -57,7 +57,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.plan import Plan, PlanStep
 
-__all__ = ["TrajectoryOptions", "motion_context", "step_path", "plan_trajectories", "attach_trajectories"]
+__all__ = ["TrajectoryOptions", "motion_context", "step_path", "lift_problem", "plan_trajectories",
+           "attach_trajectories"]
 
 _log = logging.getLogger(__name__)
 
@@ -540,6 +541,19 @@ def step_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath | None:
     if b.kind in ("repose", "final"):
         return repose_path(ctx, a, b)
     return None
+
+
+def lift_problem(ctx: _Context, q: NDArray, T_palm_object: NDArray, finger: str) -> str:
+    """Why `finger` could not lift off its contact of the grasp (q (n,) rad, `T_palm_object` (4, 4)) the
+    way a gait's path does (`_clear_lift`: `lift_height` along the contact normal, lower or leaning, within
+    the joint limits and `max_lift_angle`), nor so touch down on it; "" when it can."""
+    r = ctx.hand.fingers.index(finger)
+    T = np.asarray(T_palm_object, dtype=float)
+    p_object = transform_points(inv_T(T), ctx.hand.tip_positions(q)[[r]])
+    contact, _ = ctx.obj.closest_points(p_object)
+    n = p_object[0] - contact[0]
+    n_palm = T[:3, :3] @ (n / max(float(np.linalg.norm(n)), 1e-12))
+    return _clear_lift(ctx, np.asarray(q, dtype=float), finger, n_palm)[1]
 
 
 def plan_trajectories(plan_steps: Sequence[PlanStep], hand: Hand, obj: ObjectModel,

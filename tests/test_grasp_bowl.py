@@ -1,21 +1,27 @@
 """Grasps on the thin-walled bowl (issue 12): a generated grasp judged with trimesh's own distance to the
 bowl's mesh, the workspace filter that keeps links off the wall, and the tips' Newton polish at a joint
-limit."""
+limit; the lift-off rule."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 from grasp_checks import contact_normals, force_closure_lp
+from scipy.optimize import least_squares
 
 from regrasp_casadi.grasp_gen import SURFACE_TOL, generate_grasps, generate_regrasp_pairs
 from regrasp_casadi.grasp_nlp import _free_joint_step, sphere_offsets
 from regrasp_casadi.grasp_workspace import clear_samples, clearance_grid, workspace
 from regrasp_casadi.objects import ObjectModel
+from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.trajectory import lift_problem, motion_context
 from regrasp_casadi.transforms import inv_T, make_T, transform_points
 
 BETA = 1e-3
+HELD = Path(__file__).resolve().parent / "data" / "bowl_ring_held_on_the_floor.yaml"
 
 
 @pytest.fixture(scope="module")
@@ -116,3 +122,44 @@ def test_a_sphere_held_at_its_bound_by_a_conservative_model_is_corrected():
     sd = ex - np.array([5e-3, 5e-3, -1e-3])  # conservative, conservative, optimistic
     delta = sphere_offsets(ex, sd, np.zeros(3), radii, bound)
     np.testing.assert_allclose(delta, [5e-3, 0.0, -1e-3], atol=1e-12)
+
+
+def _best_straight_rise(hand, obj, q, T_palm_object, finger, height):
+    """scipy's bounded least squares over the finger's joints (within their limits) for its tip centre
+    moved `height` (m) along the contact normal: (residual m, the tip's angle from the normal, deg)."""
+    r, idx = hand.fingers.index(finger), hand.finger_joints[finger]
+    R, p = T_palm_object[:3, :3], T_palm_object[:3, 3]
+    p0 = hand.tip_positions(q)[r]
+    tip = (p0 - p) @ R
+    contact = obj.mesh.nearest.on_surface(tip[None])[0][0]  # trimesh's closest point, not the model's
+    n = R @ ((tip - contact) / np.linalg.norm(tip - contact))
+
+    def moved(x):
+        q_new = q.copy()
+        q_new[idx] = x
+        return hand.tip_positions(q_new)[r]
+
+    sol = least_squares(lambda x: moved(x) - (p0 + height * n), q[idx],
+                        bounds=(hand.q_lower[idx], hand.q_upper[idx]))
+    d = moved(sol.x) - p0
+    return float(np.linalg.norm(sol.fun)), float(np.degrees(np.arccos(d @ n / np.linalg.norm(d))))
+
+
+def test_a_finger_the_joint_limits_hold_on_the_floor_breaks_the_lift_rule():
+    """bowl seed 9's pair before the lift-off rule (`grasp_gen`, `trajectory.lift_problem`): only the
+    desired grasp's ring is flagged, and scipy's bounded least squares agrees: it cannot take that tip
+    2 mm straight off the floor (the lowest lift, 2/5 of 5 mm; its best leans > 45°), while every other
+    tip of both grasps gets there exactly."""
+    problem = RegraspProblem.load(HELD)
+    hand, obj = problem.hand, problem.obj
+    ctx = motion_context(hand, obj)
+    for name, g in (("grasp0", problem.grasp0), ("goal", problem.grasp_goal)):
+        q, T = np.asarray(g.q, float), np.asarray(g.T_palm_object, float)
+        for f in hand.fingers:
+            residual, angle = _best_straight_rise(hand, obj, q, T, f, 0.002)
+            held = (name, f) == ("goal", "ring")
+            assert bool(lift_problem(ctx, q, T, f)) == held, (name, f)
+            if held:
+                assert residual > 1e-3 and angle > 45.0
+            else:
+                assert residual < 1e-6
