@@ -9,6 +9,10 @@ than ζ, from checks independent of the NLPs at the plan's last grasp, for the p
 * **Out of reach**: the finger's tip cannot be put on its goal at the current object pose within the
   joint limits (damped least-squares IK, `tip_ik`, collisions ignored), or only with one of its other
   collision spheres in the object (exact distance): the object must move first.
+* **No touch-down there**: reached, the finger could not lift off its goal contact in that posture
+  the way a gait's path does (`trajectory.lift_problem`), so no gait can put it down there either
+  (measured: bowl seed 9's desired grasp before `grasp_gen`'s lift-off rule, the ring on the floor at
+  its flexion limits).
 * **No nearer point within η** (with `eta`): no point of the surface within η of the finger's contact is
   much nearer its goal contact (the mesh subdivided to η/5, its vertices within η): a gait moves a
   contact at most η, and the way to the goal leaves the surface — across a cup's mouth, say — or goes
@@ -27,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.tip_ik import finger_reach_ik
+from regrasp_casadi.trajectory import lift_problem, motion_context
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
@@ -91,6 +96,9 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
             if depth < 0.0:
                 why.append(f"at this object pose its tip reaches the goal only with a link "
                            f"{-depth * 1e3:.1f} mm in the object")
+            lift = lift_problem(motion_context(hand, obj), q_reach, T_palm_object, finger)
+            if lift:
+                why.append(f"it reaches the goal only in a posture it could not touch down in ({lift})")
         if eta is not None:
             gain = _best_gain(obj, tips[r], goal, eta)
             if gain < OFF_SURFACE_GAIN * eta:

@@ -17,6 +17,7 @@ from regrasp_casadi.grasp_nlp import _free_joint_step, sphere_offsets
 from regrasp_casadi.grasp_workspace import clear_samples, clearance_grid, workspace
 from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.stall_report import stalled_fingers
 from regrasp_casadi.trajectory import lift_problem, motion_context
 from regrasp_casadi.transforms import inv_T, make_T, transform_points
 
@@ -163,3 +164,16 @@ def test_a_finger_the_joint_limits_hold_on_the_floor_breaks_the_lift_rule():
                 assert residual > 1e-3 and angle > 45.0
             else:
                 assert residual < 1e-6
+
+
+def test_the_stall_report_says_the_ring_could_not_touch_down_on_its_goal():
+    """A plan stalled with the ring 50 mm from that goal (the others at theirs), the object at the desired
+    pose: the reach IK from the goal's joints puts the tip on the goal, in the posture scipy cannot lift
+    (above); the report says why no gait gets there."""
+    problem = RegraspProblem.load(HELD)
+    goal = problem.grasp_goal
+    errors = np.array([0.0, 0.0, 0.05, 0.0])
+    text = stalled_fingers(problem.hand, problem.obj, goal.q, goal.T_palm_object, goal.tip_centers_object,
+                           errors, 0.006, q_goal=goal.q)
+    assert text.startswith("; not at their goals: ring 50.0 mm (")
+    assert "could not touch down in" in text and "off the normal" in text
