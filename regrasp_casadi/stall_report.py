@@ -72,6 +72,7 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
     rho = float(hand.tip_radius)
     s = np.linspace(0.0, 1.0, n_samples)[:, None]
     parts = []
+    motion = None  # the paths' context (`trajectory.motion_context`), built once when a finger needs it
     for r, finger in enumerate(hand.fingers):
         if contact_error[r] <= zeta:
             continue
@@ -96,7 +97,8 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
             if depth < 0.0:
                 why.append(f"at this object pose its tip reaches the goal only with a link "
                            f"{-depth * 1e3:.1f} mm in the object")
-            lift = lift_problem(motion_context(hand, obj), q_reach, T_palm_object, finger)
+            motion = motion or motion_context(hand, obj)
+            lift = lift_problem(motion, q_reach, T_palm_object, finger)
             if lift:
                 why.append(f"it reaches the goal only in a posture it could not touch down in ({lift})")
         if eta is not None:

@@ -327,13 +327,22 @@ def _limit_problems(ctx: _Context, Q: NDArray) -> list[str]:
 
 # ----------------------------------------------------------------------------------------------- gait
 def _contact_normal_palm(ctx: _Context, step: PlanStep, finger: str) -> NDArray[np.float64]:
-    """(3,) unit outward normal at the finger's contact of `step`, palm frame: from its contact (the
-    exact closest point the step stores) to its tip centre, the direction in which the tip's distance
-    grows fastest (the face normal on a face)."""
+    """(3,) `_normal_palm` at the finger's contact of `step` (the exact closest point the step stores)."""
+    contact = np.asarray(step.contacts_object, dtype=float)[ctx.hand.fingers.index(finger)]
+    return _normal_palm(ctx, step.q, step.T_palm_object, contact, finger)
+
+
+def _normal_palm(ctx: _Context, q: NDArray, T_palm_object: NDArray, contact_object: NDArray | None,
+                 finger: str) -> NDArray[np.float64]:
+    """(3,) unit outward normal, palm frame, at the finger's contact `contact_object` (3,), object frame,
+    m (None: the exact closest point of its tip centre), hand at q (n,) rad: from the contact to the tip
+    centre, the direction in which the tip's distance grows fastest (the face normal on a face)."""
     r = ctx.hand.fingers.index(finger)
-    T = np.asarray(step.T_palm_object, dtype=float)
-    p_object = transform_points(inv_T(T), ctx.hand.tip_positions(step.q)[[r]])
-    n = p_object[0] - np.asarray(step.contacts_object, dtype=float)[r]
+    T = np.asarray(T_palm_object, dtype=float)
+    p_object = transform_points(inv_T(T), ctx.hand.tip_positions(q)[[r]])
+    if contact_object is None:
+        contact_object = ctx.obj.closest_points(p_object)[0][0]
+    n = p_object[0] - contact_object
     if np.linalg.norm(n) < 1e-9:  # a point tip on the surface
         n = np.asarray(ctx.obj.surface_normals(p_object), dtype=float)[0]
     return T[:3, :3] @ (n / np.linalg.norm(n))
@@ -547,12 +556,7 @@ def lift_problem(ctx: _Context, q: NDArray, T_palm_object: NDArray, finger: str)
     """Why `finger` could not lift off its contact of the grasp (q (n,) rad, `T_palm_object` (4, 4)) the
     way a gait's path does (`_clear_lift`: `lift_height` along the contact normal, lower or leaning, within
     the joint limits and `max_lift_angle`), nor so touch down on it; "" when it can."""
-    r = ctx.hand.fingers.index(finger)
-    T = np.asarray(T_palm_object, dtype=float)
-    p_object = transform_points(inv_T(T), ctx.hand.tip_positions(q)[[r]])
-    contact, _ = ctx.obj.closest_points(p_object)
-    n = p_object[0] - contact[0]
-    n_palm = T[:3, :3] @ (n / max(float(np.linalg.norm(n)), 1e-12))
+    n_palm = _normal_palm(ctx, q, T_palm_object, None, finger)
     return _clear_lift(ctx, np.asarray(q, dtype=float), finger, n_palm)[1]
 
 
