@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.staging import staging_error, staging_target, update_staging
+from regrasp_casadi.surface_route import gait_target
 
 if TYPE_CHECKING:
     from regrasp_casadi.certificates import Certificate
@@ -114,10 +115,10 @@ def search_score(run: _Run, finger: str, cert: Certificate) -> float:
 def _solve(run: _Run, finger: str, eta: float | None, target: NDArray | None = None
            ) -> FingerGaitResult | None:
     """OPT1 for `finger` from the current grasp towards `target` (3,), object frame, m (default its goal
-    tip centre) with step bound `eta` (None: the options' η); a failed solve is recorded in
-    `run.failures` and gives None."""
+    tip centre, or η along its surface route, `surface_route.gait_target`) with step bound `eta` (None:
+    the options' η); a failed solve is recorded in `run.failures` and gives None."""
     r = run.fingers.index(finger)
-    target = run.goal_tips[r] if target is None else target
+    target = gait_target(run, r) if target is None else target
     res = run.gait_nlps[finger].solve(run.q, run.T_palm_object, target, eta=eta)
     run.timing["opt1"] += res.solve_time
     run.solves["opt1"] += res.solves

@@ -34,6 +34,7 @@ from regrasp_casadi.planner_options import PlannerOptions
 from regrasp_casadi.reposture import reposture_round
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.stall_report import stalled_fingers
+from regrasp_casadi.surface_route import gait_target
 from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories, motion_context, step_path
 
 if TYPE_CHECKING:
@@ -143,6 +144,8 @@ class _Run:
         self.motion = None if not options.trajectories else _trajectory_context(self.hand, self.obj, options)
         """The trajectories' context (`trajectory.motion_context`) of the paths computed before a step is
         accepted (`unrealisable`); None without trajectories."""
+        self.routes = None
+        """The ways over the surface to the goal contacts (`surface_route.SurfaceRoutes`), once needed."""
         self.gait = options.gait or gait_pattern(self.hand, step.contacts_object, self.goal_contacts)
         self.gait_nlps = {f: self.gait_nlp(f) for f in self.gait}
         self.svd_nlp = self.in_grasp_nlp("svd")  # SVD reposing, stall escape and final moves
@@ -264,7 +267,7 @@ class _Run:
             r = self.fingers.index(finger)
             if self.steps[-1].contact_error[r] <= self.options.skip_tol:
                 continue
-            res = self.gait_nlps[finger].solve(self.q, self.T_palm_object, self.goal_tips[r])
+            res = self.gait_nlps[finger].solve(self.q, self.T_palm_object, gait_target(self, r))
             self.timing["opt1"] += res.solve_time
             self.solves["opt1"] += res.solves
             if not res.success:  # the finger stays where it is, which is feasible

@@ -101,6 +101,11 @@ class PlannerOptions:
     started on the joint-space way to its goal (`long_gait`: out of OPT1's local minimum at an edge)."""
     stall_limit: int = 10
     """After this many iterations without progress the plan stops with status "stalled"."""
+    surface_routes: bool = True
+    """A finger whose straight line to its goal passes through the object (its goal behind a thin
+    wall's rim, round an edge) aims each gait η along the shortest way over the surface instead
+    (`surface_route.gait_target`; an addition to the paper, whose OPT1 stalls such a finger on the
+    wrong side). False: the goal tip centre, as in the paper."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)
