@@ -115,10 +115,10 @@ def search_score(run: _Run, finger: str, cert: Certificate) -> float:
 def _solve(run: _Run, finger: str, eta: float | None, target: NDArray | None = None
            ) -> FingerGaitResult | None:
     """OPT1 for `finger` from the current grasp towards `target` (3,), object frame, m (default its goal
-    tip centre, or η along its surface route, `surface_route.gait_target`) with step bound `eta` (None:
-    the options' η); a failed solve is recorded in `run.failures` and gives None."""
+    tip centre) with step bound `eta` (None: the options' η); a failed solve is recorded in
+    `run.failures` and gives None."""
     r = run.fingers.index(finger)
-    target = gait_target(run, r) if target is None else target
+    target = run.goal_tips[r] if target is None else target
     res = run.gait_nlps[finger].solve(run.q, run.T_palm_object, target, eta=eta)
     run.timing["opt1"] += res.solve_time
     run.solves["opt1"] += res.solves
@@ -158,6 +158,8 @@ def _gait(run: _Run, finger: str, cert: Certificate, todo: list[str]) -> None:
     target = staging_target(run, finger)
     if target is None and sliders and ho.support_search and run.staging is None:
         target = _support_target(run, finger, sliders)
+    if target is None:  # its goal, or η along its surface route: once, for every lookahead attempt
+        target = gait_target(run, run.fingers.index(finger))
     first = None
     for attempt in range(max(1, ho.lookahead_tries) if ho.lookahead else 1):
         res = _solve(run, finger, None if attempt == 0 else eta, target)

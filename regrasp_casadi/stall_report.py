@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.surface_route import line_clearance
 from regrasp_casadi.tip_ik import finger_reach_ik
 from regrasp_casadi.trajectory import lift_problem, motion_context
 
@@ -70,15 +71,13 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
     R, t = np.asarray(T_palm_object, float)[:3, :3], np.asarray(T_palm_object, float)[:3, 3]
     tips = (np.asarray(hand.tip_positions(q), float) - t) @ R
     rho = float(hand.tip_radius)
-    s = np.linspace(0.0, 1.0, n_samples)[:, None]
     parts = []
     motion = None  # the paths' context (`trajectory.motion_context`), built once when a finger needs it
     for r, finger in enumerate(hand.fingers):
         if contact_error[r] <= zeta:
             continue
         goal = np.asarray(goal_tips_object[r], float)
-        line = tips[r] + s * (goal - tips[r])
-        least = float(np.min(obj.exact_signed_distance(line)))
+        least = line_clearance(obj, tips[r], goal, n_samples)
         why = []
         if least < 0.0:
             why.append(f"the object lies between its tip and its goal: the straight line passes "

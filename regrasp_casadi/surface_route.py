@@ -46,7 +46,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.planner import _Run
 
-__all__ = ["FACING", "MAX_EDGE", "SurfaceGraph", "SurfaceRoutes", "gait_target", "line_blocked"]
+__all__ = ["FACING", "MAX_EDGE", "SurfaceGraph", "SurfaceRoutes", "gait_target", "line_blocked",
+           "line_clearance", "surface_graph"]
 
 MAX_EDGE = 0.005
 """Longest edge of the subdivided mesh the routes run on, m (η / 2)."""
@@ -56,6 +57,8 @@ _ENTRIES = 12
 """Nearest vertices considered as a point's entries into the graph."""
 _LINE_SAMPLES = 21
 """Samples of the straight tip-to-goal line in `line_blocked`."""
+_NO_VERTEX = -9999
+"""scipy's `dijkstra` predecessor of the source and of unreached vertices."""
 
 
 class SurfaceGraph:
@@ -146,20 +149,27 @@ class SurfaceRoutes:
         if not np.isfinite(total) or total <= ahead:
             return None
         nxt = self.next_vertex[r]
-        while nxt[v] not in (n, -9999) and total - self.to_goal[r][v] < ahead:
+        while nxt[v] not in (n, _NO_VERTEX) and total - self.to_goal[r][v] < ahead:
             v = int(nxt[v])
         return self.surface.vertices[v] + rho * self.surface.normals[v]
 
 
+def line_clearance(obj: ObjectModel, a_object: NDArray, b_object: NDArray, n_samples: int = _LINE_SAMPLES
+                   ) -> float:
+    """Least exact signed distance (m, < 0 inside) to the object of the straight line from a_object to
+    b_object ((3,) each, object frame, m), at n_samples evenly spaced points."""
+    s = np.linspace(0.0, 1.0, n_samples)[:, None]
+    line = np.asarray(a_object, float) + s * (np.asarray(b_object, float) - np.asarray(a_object, float))
+    return float(np.min(obj.exact_signed_distance(line)))
+
+
 def line_blocked(obj: ObjectModel, tip_object: NDArray, goal_tip_object: NDArray) -> bool:
     """Whether the straight line from the tip centre to the goal tip centre ((3,) each, object frame,
-    m) passes inside the object (exact distances at `_LINE_SAMPLES` points). Not merely closer than the
-    tip radius: between two tip centres over a convex curved face the line always is (a sphere's chord),
-    and OPT1's straight pull is right there (measured: with that test the generated sphere pair of seed
-    1 stalled with the SVD method, which converges without routes)."""
-    s = np.linspace(0.0, 1.0, _LINE_SAMPLES)[:, None]
-    line = tip_object + s * (goal_tip_object - tip_object)
-    return float(np.min(obj.exact_signed_distance(line))) < 0.0
+    m) passes inside the object (`line_clearance` < 0). Not merely closer than the tip radius: between
+    two tip centres over a convex curved face the line always is (a sphere's chord), and OPT1's straight
+    pull is right there (measured: with that test the generated sphere pair of seed 1 stalled with the
+    SVD method, which converges without routes)."""
+    return line_clearance(obj, tip_object, goal_tip_object) < 0.0
 
 
 def gait_target(run: _Run, r: int) -> NDArray[np.float64]:
