@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,7 +15,7 @@ from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.planner import plan_regrasp
 from regrasp_casadi.planner_options import PlannerOptions
 from regrasp_casadi.problem import RegraspProblem
-from regrasp_casadi.surface_route import MAX_EDGE, SurfaceRoutes, line_blocked
+from regrasp_casadi.surface_route import MAX_EDGE, ROUTE_AFTER, SurfaceRoutes, gait_target, line_blocked
 from regrasp_casadi.verify import verify
 
 R_OUT, WALL = 0.06, 0.004  # ObjectModel.bowl()'s outer radius and wall, m
@@ -88,6 +89,27 @@ def test_the_line_is_blocked_through_the_wall_and_free_across_the_bowl(bowl):
     assert float(sphere.exact_signed_distance((0.5 * (a + b) * (0.035 + rho))[None])[0]) < rho
     assert not line_blocked(sphere, (0.035 + rho) * a, (0.035 + rho) * b)
     assert line_blocked(sphere, (0.035 + rho) * a, -(0.035 + rho) * a)  # antipodes: through it
+
+
+def test_a_blocked_finger_aims_straight_until_the_plan_stops_progressing(bowl):
+    # cup_regrasp SD stalled when its middle and ring took routes from the first iteration on (a route
+    # can lead into a dead end the straight pull avoids): routes are the stall's remedy, not the default
+    eta, rho = 0.01, 0.012
+    below = np.radians(40.0)
+    n_out = np.array([np.cos(below), 0.0, -np.sin(below)])
+    inside = _bowl_point(bowl, R_OUT - WALL, below)
+    tip, goal = _bowl_point(bowl, R_OUT, below) + rho * n_out, inside - rho * n_out
+    assert line_blocked(bowl, tip, goal)
+    run = SimpleNamespace(goal_tips=goal[None], goal_contacts=inside[None], obj=bowl, routes=None,
+                          hand=SimpleNamespace(tip_radius=rho), tips_object=lambda: tip[None],
+                          options=replace(PlannerOptions(), finger_gait=SimpleNamespace(eta=eta)), stalled=0)
+    assert np.array_equal(gait_target(run, 0), goal)
+    run.stalled = ROUTE_AFTER
+    target = gait_target(run, 0)
+    assert np.linalg.norm(target - tip) == pytest.approx(eta, rel=0.5)  # a step up the outer face
+    assert float(bowl.exact_signed_distance(target[None])[0]) == pytest.approx(rho, abs=3e-4)
+    run.options = replace(run.options, surface_routes=False)
+    assert np.array_equal(gait_target(run, 0), goal)
 
 
 @pytest.fixture(scope="module")
