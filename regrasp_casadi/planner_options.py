@@ -106,6 +106,11 @@ class PlannerOptions:
     wall's rim, round an edge) aims each gait η along the shortest way over the surface instead
     (`surface_route.gait_target`; an addition to the paper, whose OPT1 stalls such a finger on the
     wrong side). False: the goal tip centre, as in the paper."""
+    route_after: int = 1
+    """Surface routes are taken once the plan has gone this many iterations without progress: taken
+    from the first iteration, the middle and ring of the shipped cup_regrasp (SD) followed theirs into a
+    stall 74 mm from the ring's goal, where the straight pull converges (routes are the stall's remedy,
+    not the default)."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)

@@ -172,19 +172,13 @@ def line_blocked(obj: ObjectModel, tip_object: NDArray, goal_tip_object: NDArray
     return line_clearance(obj, tip_object, goal_tip_object) < 0.0
 
 
-ROUTE_AFTER = 1
-"""Routes are taken once the plan has gone this many iterations without progress (`_Run.stalled`): taken
-from the first iteration, the middle and ring of the shipped cup_regrasp (SD) followed theirs into a
-stall 74 mm from the ring's goal, where the straight pull converges."""
-
-
 def gait_target(run: _Run, r: int) -> NDArray[np.float64]:
     """OPT1's tip-centre target for finger r of the planner's run (object frame, m): the goal tip centre,
     or, when the straight line to it is blocked (`line_blocked`), `PlannerOptions.surface_routes` is on
-    and the plan has stopped progressing (`ROUTE_AFTER`), the point η along the surface route
-    (`SurfaceRoutes.target`)."""
+    and the plan has gone `PlannerOptions.route_after` iterations without progress, the point η along
+    the surface route (`SurfaceRoutes.target`)."""
     goal = run.goal_tips[r]
-    if not run.options.surface_routes or run.stalled < ROUTE_AFTER:
+    if not run.options.surface_routes or run.stalled < run.options.route_after:
         return goal
     rho = float(run.hand.tip_radius)
     tip = run.tips_object()[r]

@@ -15,7 +15,7 @@ from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.planner import plan_regrasp
 from regrasp_casadi.planner_options import PlannerOptions
 from regrasp_casadi.problem import RegraspProblem
-from regrasp_casadi.surface_route import MAX_EDGE, ROUTE_AFTER, SurfaceRoutes, gait_target, line_blocked
+from regrasp_casadi.surface_route import MAX_EDGE, SurfaceRoutes, gait_target, line_blocked
 from regrasp_casadi.verify import verify
 
 R_OUT, WALL = 0.06, 0.004  # ObjectModel.bowl()'s outer radius and wall, m
@@ -104,10 +104,14 @@ def test_a_blocked_finger_aims_straight_until_the_plan_stops_progressing(bowl):
                           hand=SimpleNamespace(tip_radius=rho), tips_object=lambda: tip[None],
                           options=replace(PlannerOptions(), finger_gait=SimpleNamespace(eta=eta)), stalled=0)
     assert np.array_equal(gait_target(run, 0), goal)
-    run.stalled = ROUTE_AFTER
+    run.stalled = run.options.route_after
     target = gait_target(run, 0)
     assert np.linalg.norm(target - tip) == pytest.approx(eta, rel=0.5)  # a step up the outer face
     assert float(bowl.exact_signed_distance(target[None])[0]) == pytest.approx(rho, abs=3e-4)
+    run.options = replace(run.options, route_after=3)  # the option sets how long the plan must stall
+    assert np.array_equal(gait_target(run, 0), goal)
+    run.stalled = 3
+    assert np.array_equal(gait_target(run, 0), target)
     run.options = replace(run.options, surface_routes=False)
     assert np.array_equal(gait_target(run, 0), goal)
 
