@@ -23,13 +23,14 @@ distance for the checks.
 * **Checks** at every knot (no point of the hand moves more than `max_point_step` between two, so a
   distance between two knots is within half of it of one of theirs): joint limits, the moving finger's
   spheres ≥ β from the object (a sphere closer than β at the transit's lifted ends, e.g. a lift held
-  short by the joint limits, no worse than there) and ≥ `self_clearance` from the other fingers and the palm
-  in a transit (`Hand.self_collision_pairs`), not in the object nor in another finger during lift-off and
-  touch-down (a lift is lowered to 3/5 or 2/5, or leans 25°/40° away from the closest other finger at
-  any of the three heights, when that keeps it clear of the others); in a reposing the tips within
-  `surface_tol` of the surface, the contacts within `max_slip` of step A's, every non-tip sphere (palm
-  included) outside the object, no two fingers overlapping. A failure (an IK that cannot reach a knot
-  within the limits, a check) is reported in the path (`ok` False and `detail`), never hidden.
+  short by the joint limits, no worse than there) and ≥ `self_clearance` from the other fingers and the
+  palm in a transit (`Hand.self_collision_pairs`; or no closer than at its lifted ends, never into
+  them), not in the object nor in another finger during lift-off and touch-down (a lift is lowered to
+  3/5 or 2/5, or leans 25°/40° away from the closest other finger at any of the three heights, when
+  that keeps it clear of the others); in a reposing the tips within `surface_tol` of the surface, the
+  contacts within `max_slip` of step A's, every non-tip sphere (palm included) outside the object, no
+  two fingers overlapping. A failure (an IK that cannot reach a knot within the limits, a check) is
+  reported in the path (`ok` False and `detail`), never hidden.
 
     >>> plan = attach_trajectories(plan, hand, obj)          # what plan_regrasp does at the end
     >>> t, q, T_palm_object = plan.sample(0.01)
@@ -435,22 +436,20 @@ def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDAr
              also: NDArray) -> tuple[NDArray[np.float64], float, float, str, NDArray[np.float64]]:
     """Transit knots (k, n) from q_a to q_b, linear in joint space, directly or through one via point
     raised by `via_heights` along n_mid (palm frame); the first whose finger spheres keep ≥ β from the
-    object and ≥ `self_clearance` from the other fingers, else the one with the largest margin. A sphere
-    already closer than β at the lifted end q_a or q_b (a lift the joint limits or the other fingers held
-    short, a link near the object in the grasp) keeps no worse than it is there: the transit starts and
-    ends there whatever its way (flat tool, index touch-down 0.70 mm off the tool: refused at every
-    iteration before), as OPT1 holds such a link no worse than its start.
-
-    The clearance of the finger's spheres at the knots `also` (j, n) is computed with the first attempt
-    (one query). Returns (knots, min clearance m, min distance to the other fingers m, why, clearance
-    of `also` (j, spheres) m).
-    """
+    object and ≥ `self_clearance` from the other fingers, else the one with the largest margin. What is
+    closer at the lifted end q_a or q_b (a lift held short by the joint limits or the other fingers, a
+    link near the object in the grasp) keeps no worse than there, as OPT1 and `_clear_lift` do: per
+    sphere for the object (flat tool, index touch-down 0.70 mm off it), the finger's least distance to
+    the others, never below 0 (bowl seed 9 SD: an index lifted 0.47 mm from the middle); else both
+    gaits were refused at every iteration. The clearance of the finger's spheres at the knots `also`
+    (j, n) comes with the first attempt's query. Returns (knots, min clearance m, min distance to the
+    other fingers m, why, clearance of `also` (j, spheres) m)."""
     hand, o = ctx.hand, ctx.options
     spheres = ctx.finger_spheres(finger)
     r = hand.fingers.index(finger)
     p_mid = 0.5 * (hand.tip_positions(q_a)[r] + hand.tip_positions(q_b)[r])
     q_mid = 0.5 * (q_a + q_b)
-    best: tuple[NDArray, float, str, float, float, float] | None = None
+    best: tuple | None = None
     clear_also = np.zeros((0, len(spheres)))
     for attempt, height in enumerate((None, *o.via_heights)):
         waypoints = [q_a, q_b]
@@ -466,23 +465,26 @@ def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDAr
         clear_all = ctx.clearance(Q_all, np.repeat(T[None], len(Q_all), axis=0), spheres, o.beta)
         if first:
             clear_also = clear_all[len(Q):]
-        clear, self_clear = float(np.min(clear_all[: len(Q)])), float(np.min(ctx.self_distance(Q, finger)))
+        gaps = ctx.self_distance(Q, finger)
+        clear, self_clear = float(np.min(clear_all[: len(Q)])), float(np.min(gaps))
         if first:  # per sphere: β, or no worse than at the lifted ends where it is closer there
             floor = np.minimum(o.beta, np.min(clear_all[[0, len(Q) - 1]], axis=0)) - 1e-9
+            self_floor = min(max(min(gaps[0], gaps[-1]), 0.0), o.self_clearance or 0.0) - 1e-9
         why = "; ".join(w for _, w in legs if w)
-        dip = float(np.min(clear_all[: len(Q)] - floor))  # < 0: a sphere below its floor
-        margin = min(dip, self_clear - (o.self_clearance or 0.0))
+        dip, self_dip = float(np.min(clear_all[: len(Q)] - floor)), self_clear - self_floor  # < 0: below
+        margin = min(dip, self_dip)
         if best is None or margin > best[1]:
-            best = (Q, margin, why, clear, self_clear, dip)
+            best = (Q, margin, why, clear, self_clear, dip, self_dip)
         if margin >= 0.0:
             break
     assert best is not None
-    Q, margin, why, clear, self_clear, dip = best
+    Q, margin, why, clear, self_clear, dip, self_dip = best
     if dip < 0.0:
         why += (f"; transit clearance {clear * 1e3:.3f} mm < β = {o.beta * 1e3:.3f} mm (or a sphere "
                 f"{-dip * 1e3:.3f} mm closer than at the transit's ends, where it is closer than β)")
-    if o.self_clearance is not None and self_clear < o.self_clearance:
-        why += f"; transit {self_clear * 1e3:.3f} mm from another finger < {o.self_clearance * 1e3:.3f} mm"
+    if self_dip < 0.0:
+        why += (f"; transit {self_clear * 1e3:.3f} mm from another finger < {o.self_clearance * 1e3:.3f} mm "
+                f"(or {-self_dip * 1e3:.3f} mm closer than at the transit's ends, where it is closer)")
     return Q, clear, self_clear, why.strip("; "), clear_also
 
 
@@ -547,9 +549,7 @@ def step_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath | None:
 
     if b.kind in ("gait", "slide") and b.finger in ctx.hand.fingers:
         return _gait_path(ctx, a, b) if b.kind == "gait" else slide_path(ctx, a, b)
-    if b.kind in ("repose", "final"):
-        return repose_path(ctx, a, b)
-    return None
+    return repose_path(ctx, a, b) if b.kind in ("repose", "final") else None
 
 
 def lift_problem(ctx: _Context, q: NDArray, T_palm_object: NDArray, finger: str) -> str:
