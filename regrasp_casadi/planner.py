@@ -24,13 +24,13 @@ from regrasp_casadi.finger_gait import FingerGaitNLP
 from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.grasp_metrics import tip_frames, tip_slip
 from regrasp_casadi.hand_orientation import pinned_opposer_hint
-from regrasp_casadi.holding import STABILITY_KINDS, Holding
+from regrasp_casadi.holding import Holding
 from regrasp_casadi.in_grasp import InGraspNLP, svd_target, trust_region
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.long_gait import long_gait
 from regrasp_casadi.nlp_cache import NLPCache, clear_built_solvers
 from regrasp_casadi.plan import Plan, PlanStep
-from regrasp_casadi.planner_options import PlannerOptions
+from regrasp_casadi.planner_options import PlannerOptions, input_problem
 from regrasp_casadi.reposture import reposture_round
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.stall_report import stalled_fingers
@@ -365,7 +365,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     require_grasp(grasp0, "grasp0")
     require_grasp(grasp_goal, "grasp_goal")
     options = (options or PlannerOptions()).with_overrides(**overrides)
-    problems = _check_input(grasp0, grasp_goal, options)
+    problems = input_problem(grasp0, grasp_goal, options)
     if problems:
         return _make_plan(grasp0, grasp_goal, options, t_start, None, "invalid_input", problems)
     run = _Run(grasp0, grasp_goal, options, _DEFAULT_CACHE if cache is None else cache)
@@ -554,45 +554,3 @@ def _trajectory_context(hand: Hand, obj, options: PlannerOptions):
     attaches the paths with)."""
     gait = options.finger_gait
     return motion_context(hand, obj, TrajectoryOptions(beta=gait.beta, self_clearance=gait.self_clearance))
-
-
-def _stability_problem(options: PlannerOptions) -> str:
-    """Why the stability options cannot be planned with ("" when they can)."""
-    if options.stability not in STABILITY_KINDS:
-        return f"unknown stability {options.stability!r} (use {', '.join(map(repr, STABILITY_KINDS))})"
-    if options.gait_order == "search" and options.stability == "none":
-        return "gait_order 'search' searches over certified gaits: it needs stability on"
-    if options.stability == "gravity" and not (np.all(np.isfinite(options.gravity_palm))
-                                                and np.linalg.norm(options.gravity_palm) > 0):
-        return f"gravity_palm must be a non-zero acceleration (m/s²), got {options.gravity_palm}"
-    if options.object_mass is not None and not options.object_mass > 0:
-        return f"object_mass must be > 0 kg, got {options.object_mass}"
-    return ""
-
-
-def _check_input(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> str:  # noqa: PLR0911
-    """Why the input cannot be planned ("" when it can): a chain of checks, each returning its message
-    (hence the returns beyond PLR0911's limit)."""
-    if grasp0.q is None:
-        return "the initial grasp has no joint angles (build it with Grasp.from_joints)"
-    if grasp_goal.hand is not grasp0.hand and grasp_goal.hand.spec() != grasp0.hand.spec():
-        return "the initial and desired grasps use different hands"
-    if grasp_goal.obj is not grasp0.obj and grasp_goal.obj.spec != grasp0.obj.spec:
-        return "the initial and desired grasps use different objects"
-    if options.method not in ("svd", "sd"):
-        return f"unknown method {options.method!r} (use 'svd' or 'sd')"
-    if options.gait_order not in ("pattern", "stability", "search"):
-        return f"unknown gait_order {options.gait_order!r} (use 'pattern', 'stability' or 'search')"
-    if _stability_problem(options):
-        return _stability_problem(options)
-    if options.gait is not None:
-        unknown = [f for f in options.gait if f not in grasp0.hand.fingers]
-        if unknown:
-            return f"gait names unknown fingers {unknown}; the hand has {list(grasp0.hand.fingers)}"
-    gait, in_grasp = options.finger_gait, options.in_grasp
-    if not (options.zeta > 0 and gait.eta > 0 and gait.beta >= 0 and in_grasp.beta >= 0
-            and options.max_iters >= 0):
-        return "zeta and eta must be positive, beta and max_iters non-negative"
-    if any(c is not None and not c >= 0 for c in (gait.self_clearance, in_grasp.self_clearance)):
-        return "self_clearance must be non-negative or None (no self-collision constraints)"
-    return grasp0.inconsistency("grasp0")

@@ -8,17 +8,20 @@ checks' options nested, and the keyword overrides `plan_regrasp` accepts.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 import numpy as np
 
 from regrasp_casadi.certificates import GRAVITY
 from regrasp_casadi.constants import ZETA
 from regrasp_casadi.finger_gait import FingerGaitOptions
-from regrasp_casadi.holding import HoldingOptions
+from regrasp_casadi.holding import STABILITY_KINDS, HoldingOptions
 from regrasp_casadi.in_grasp import InGraspOptions
 
-__all__ = ["PlannerOptions"]
+if TYPE_CHECKING:
+    from regrasp_casadi.grasp import Grasp
+
+__all__ = ["PlannerOptions", "input_problem", "stability_problem"]
 
 
 @dataclass(frozen=True)
@@ -176,3 +179,45 @@ class PlannerOptions:
         opts["gait"] = list(opts["gait"]) if opts["gait"] is not None else None
         opts["gravity_palm"] = list(opts["gravity_palm"])
         return opts
+
+
+def stability_problem(options: PlannerOptions) -> str:
+    """Why the stability options cannot be planned with ("" when they can)."""
+    if options.stability not in STABILITY_KINDS:
+        return f"unknown stability {options.stability!r} (use {', '.join(map(repr, STABILITY_KINDS))})"
+    if options.gait_order == "search" and options.stability == "none":
+        return "gait_order 'search' searches over certified gaits: it needs stability on"
+    if options.stability == "gravity" and not (np.all(np.isfinite(options.gravity_palm))
+                                                and np.linalg.norm(options.gravity_palm) > 0):
+        return f"gravity_palm must be a non-zero acceleration (m/s²), got {options.gravity_palm}"
+    if options.object_mass is not None and not options.object_mass > 0:
+        return f"object_mass must be > 0 kg, got {options.object_mass}"
+    return ""
+
+
+def input_problem(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> str:  # noqa: PLR0911
+    """Why the input cannot be planned ("" when it can): a chain of checks, each returning its message
+    (hence the returns beyond PLR0911's limit)."""
+    if grasp0.q is None:
+        return "the initial grasp has no joint angles (build it with Grasp.from_joints)"
+    if grasp_goal.hand is not grasp0.hand and grasp_goal.hand.spec() != grasp0.hand.spec():
+        return "the initial and desired grasps use different hands"
+    if grasp_goal.obj is not grasp0.obj and grasp_goal.obj.spec != grasp0.obj.spec:
+        return "the initial and desired grasps use different objects"
+    if options.method not in ("svd", "sd"):
+        return f"unknown method {options.method!r} (use 'svd' or 'sd')"
+    if options.gait_order not in ("pattern", "stability", "search"):
+        return f"unknown gait_order {options.gait_order!r} (use 'pattern', 'stability' or 'search')"
+    if stability_problem(options):
+        return stability_problem(options)
+    if options.gait is not None:
+        unknown = [f for f in options.gait if f not in grasp0.hand.fingers]
+        if unknown:
+            return f"gait names unknown fingers {unknown}; the hand has {list(grasp0.hand.fingers)}"
+    gait, in_grasp = options.finger_gait, options.in_grasp
+    if not (options.zeta > 0 and gait.eta > 0 and gait.beta >= 0 and in_grasp.beta >= 0
+            and options.max_iters >= 0):
+        return "zeta and eta must be positive, beta and max_iters non-negative"
+    if any(c is not None and not c >= 0 for c in (gait.self_clearance, in_grasp.self_clearance)):
+        return "self_clearance must be non-negative or None (no self-collision constraints)"
+    return grasp0.inconsistency("grasp0")
