@@ -291,21 +291,21 @@ class _Run:
         eps = [holding_quality(contacts, tips, fingers.index(f), self.com, self.length) for f in todo]
         return todo.pop(int(np.argmax(eps)))
 
-    def repose(self, escape: bool, reach: float = 1.0) -> None:
+    def repose(self, escape: bool, reach: float = 1.0, contacts_target: bool = False) -> None:
         """One in-grasp reposing (OPT2) towards the method's target: the SVD target pose, the fingers'
         workspaces, or (`escape`, after iterations without progress) the desired object pose (`reach` < 1:
         that part of the way within the trust region, `final_moves.part_way`), then accepted only if it
         brings the object closer to it (monotone, as the final moves); a rejected reposing leaves the
-        object where it is."""
+        object where it is. `contacts_target`: the SVD target pose whatever the method."""
         nlp = self.repose_nlp
         if escape:  # repose towards the desired object pose
             T_target = self.T_palm_object_goal if reach >= 1.0 else part_way(
                 self.T_palm_object, self.T_palm_object_goal, trust_region(self.svd_nlp.options), reach)
             nlp, target = self.svd_nlp, {"T_target": T_target}
-        elif self.options.method == "svd":
+        elif self.options.method == "svd" or contacts_target:
             T_target = svd_target(self.T_palm_object, self.steps[-1].contacts_object, self.goal_contacts,
                                   self.T_palm_object_goal, self.svd_nlp.goal_pull)
-            target = {"T_target": T_target}
+            nlp, target = self.svd_nlp, {"T_target": T_target}
         else:
             target = {"p_object_tips_goal": self.goal_tips}
         res = nlp.solve(self.q, self.T_palm_object, self.tips_object(), **target)
@@ -460,12 +460,19 @@ class _Fallback:
 
 def _repose(run: _Run, escape: bool) -> None:
     """The iteration's reposing (`_Run.repose`); a stall escape refused for the whole way to the desired
-    pose is asked again for part of it (`_REGAIT_REACH`), as `_regait` does."""
+    pose is asked again for part of it (`_REGAIT_REACH`), as `_regait` does. With method "sd", an escape
+    that brings the object less than `PlannerOptions.sd_escape_gain` closer to the desired pose is
+    followed by a reposing towards the SVD target (the goal contacts brought to the tips)."""
     n_steps = len(run.steps)
+    before = pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj)
     for reach in _REGAIT_REACH if escape else (1.0,):
         run.repose(escape=escape, reach=reach)
         if len(run.steps) > n_steps:
-            return
+            break
+    gain = run.options.sd_escape_gain
+    if escape and run.options.method == "sd" and gain is not None and \
+            before - pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj) < gain:
+        run.repose(escape=False, contacts_target=True)
 
 
 def _regait(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:

@@ -114,6 +114,13 @@ class PlannerOptions:
     from the first iteration, the middle and ring of the shipped cup_regrasp (SD) followed theirs into a
     stall 74 mm from the ring's goal, where the straight pull converges (routes are the stall's remedy,
     not the default)."""
+    sd_escape_gain: float | None = 2e-3
+    """Method "sd": a stall escape that brings the object less than this closer to the desired pose
+    (`final_moves.pose_distance`, m) is followed, in the same iteration, by a reposing towards the SVD
+    target (`in_grasp.svd_target`: the goal contacts brought towards the tips); None: never. An addition
+    to the paper: the workspaces' target cannot pull a goal that is inside a finger's workspace hull but
+    out of its reach, and the desired pose can be blocked by the grasp on the way (generated bowl seed 6
+    and cup seed 4 stalled so, their escapes creeping < 1 mm per iteration; both converge with it)."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)
