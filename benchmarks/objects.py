@@ -7,8 +7,9 @@ the miss), and each pair planned with both OPT2 methods ("svd", "sd"; default pl
 judged by `verify`. Targets (issue 12): a pair in ≤ 60 s (median ≤ 20 s) on every class; ≥ 90 % of the
 pairs converged and verified per class and method.
 
-    nice -n 10 python benchmarks/objects.py [--pairs 3] [--budget 60] [--classes sphere flat_tool ...]
-                                            [--no-plan] [--append] [--out FILE] [--stability none]
+    nice -n 10 python benchmarks/objects.py [--pairs 3] [--first-seed 0] [--budget 60]
+                                            [--classes sphere flat_tool ...] [--no-plan] [--append]
+                                            [--out FILE] [--stability none]
                                             [--workers 2]
 
 `--workers N` runs the classes in N worker processes (one class per process at a time; each class's
@@ -78,13 +79,14 @@ def _progress(label: str, t0: float):
 
 
 def run_class(hand: Hand, name: str, n_pairs: int, budget: float, plan: bool,
-              stability: str = "force_closure") -> dict:
-    """Build one class, draw its pairs (seeds 0..n_pairs−1) and plan each with both methods."""
+              stability: str = "force_closure", first_seed: int = 0) -> dict:
+    """Build one class, draw its pairs (seeds first_seed..first_seed+n_pairs−1) and plan each with both
+    methods."""
     obj, record = _build(name)
     print(f"{name}: {record['pieces']} pieces, {record['planes']} planes, built in {record['build_s']} s",
           file=sys.stderr, flush=True)
     record["pairs"] = []
-    for seed in range(n_pairs):
+    for seed in range(first_seed, first_seed + n_pairs):
         t0 = time.perf_counter()
         entry: dict = {"seed": seed}
         try:
@@ -140,9 +142,10 @@ def _run_one(name: str, args: argparse.Namespace) -> dict:
         sys.path.insert(0, str(HERE))
     from machine import machine_info
 
-    record = run_class(Hand.allegro_right(), name, args.pairs, args.budget, not args.no_plan, args.stability)
-    record.update(machine=machine_info(), pairs_asked=args.pairs, budget_s=args.budget,
-                  stability=args.stability)
+    record = run_class(Hand.allegro_right(), name, args.pairs, args.budget, not args.no_plan, args.stability,
+                       args.first_seed)
+    record.update(machine=machine_info(), pairs_asked=args.pairs, first_seed=args.first_seed,
+                  budget_s=args.budget, stability=args.stability)
     return record
 
 
@@ -163,6 +166,7 @@ def _records(args: argparse.Namespace):
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pairs", type=int, default=3)
+    parser.add_argument("--first-seed", type=int, default=0, help="seed of the first pair (then +1 each)")
     parser.add_argument("--budget", type=float, default=60.0, help="seconds per pair")
     parser.add_argument("--classes", nargs="*", choices=list(CLASSES), default=list(CLASSES))
     parser.add_argument("--no-plan", action="store_true", help="only generate the pairs")
