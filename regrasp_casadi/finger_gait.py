@@ -308,7 +308,7 @@ class FingerGaitNLP:
         for x, ev in sorted(iterates, key=lambda it: float(np.linalg.norm(it[1].p_object_tip - c_goal))):
             if self._k and np.min(ev.exact[1:] - self._radii) < 0.5 * o.beta:
                 continue  # a link in the object: moving the tip does not clear it
-            polished = self._polish_tip(q, T, x, ev, p)
+            polished = self._polish_tip(q, T, x, ev, p, ball=(c0, o.eta))
             if polished is None:
                 continue
             x_new, ev_new = polished
@@ -318,11 +318,15 @@ class FingerGaitNLP:
                 return replace(corr, x=x_new, evaluation=ev_new, converged=True)
         return corr
 
-    def _polish_tip(self, q, T, x, ev: _Evaluation, p, iters: int = 5, max_error: float = 2e-3
+    def _polish_tip(self, q, T, x, ev: _Evaluation, p, *, iters: int = 5, max_error: float = 2e-3,
+                    ball: tuple[NDArray[np.float64], float] | None = None
                     ) -> tuple[NDArray[np.float64], _Evaluation] | None:
         """Newton steps moving the tip centre along its exact contact normal by −(SD_exact − ρ) with the
         finger's joints (`tip_ik`, within the joint limits), from the finger joints `x` (n_r,) rad of the
         grasp (`q` (n,) rad, `T` (4, 4) palm ← object); `p`: the smooth evaluation's parameters.
+        `ball` = (c0 (3,), η): each step's target is kept within η (m, less 0.1 %) of the start tip centre
+        c0 (object frame, m), the gait's step bound: the solutions the loop leaves on the bound (a step of
+        η) would otherwise end 0.1–0.4 mm beyond it after the step along the normal (mug seed 7, SVD).
         Returns (joints (n_r,), evaluation) once the tip is within `surface_tol` (m) of the surface, None
         when it is not after `iters` steps or starts farther than `max_error` (m) from it."""
         from regrasp_casadi.tip_ik import tip_ik
@@ -339,7 +343,12 @@ class FingerGaitNLP:
             normal = ev.p_object_tip - closest[0]  # outward: the tip centre is outside the mesh
             normal /= max(float(np.linalg.norm(normal)), 1e-12)
             q_full[self._idx] = x
-            target = T[:3, :3] @ (ev.p_object_tip - err * normal) + T[:3, 3]  # palm frame, m
+            p_target = ev.p_object_tip - err * normal  # object frame, m
+            if ball is not None:  # back into the step bound, towards its centre
+                step = p_target - ball[0]
+                length = max(float(np.linalg.norm(step)), 1e-12)
+                p_target = ball[0] + step * min(1.0, 0.999 * ball[1] / length)
+            target = T[:3, :3] @ p_target + T[:3, 3]  # palm frame, m
             q_new, _ = tip_ik(self.hand, q_full, [self.finger], target[None], self._idx, q_full, max_iters=10)
             x = q_new[self._idx]
             ev = self._evaluate(x, p)

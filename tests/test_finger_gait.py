@@ -1,4 +1,5 @@
-"""OPT1 (FingerGaitNLP) on the shipped box problem: goal reached, constraints hold with exact geometry."""
+"""OPT1 (FingerGaitNLP) on the shipped box problem: goal reached, constraints hold with exact geometry; on a
+generated mug grasp, a gait left on its step bound is polished onto the surface within it."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+import trimesh
 
 from regrasp_casadi import nlp_cache
 from regrasp_casadi.finger_gait import FingerGaitNLP, FingerGaitOptions
@@ -147,3 +149,25 @@ def test_a_link_closer_than_beta_at_the_start_gets_no_closer_and_the_gait_goes_o
     tip = [transform_points(T_object_palm, hand.tip_positions(q))[r] for q in (g0.q, res.q)]
     assert np.linalg.norm(tip[1] - goal) <= np.linalg.norm(tip[0] - goal) - 0.003
     assert link_gap(res.q) >= start_gap - 1e-5
+
+
+def test_a_gait_left_on_its_step_bound_is_polished_onto_the_surface_within_it():
+    """The paper planner's SVD plan of the generated mug pair of seed 7 stalled at this grasp (c33f619):
+    every gait of the middle finger was rejected. Its correction loop, stopped at `max_corrections`, left
+    the tip 0.3 mm into the mug, and the polish that moves an iterate's tip onto the exact surface took
+    each iterate 0.06–0.35 mm beyond the step bound η. Now the polish keeps within η: the gait succeeds,
+    its tip centre moved ≤ η, at the tip radius from the surface by trimesh's exact signed distance, and
+    nearer the goal (the plan of the pair converges, verified, in 15 iterations)."""
+    problem = RegraspProblem.load(Path(__file__).parent / "data" / "mug_middle_gait_on_the_step_bound.yaml")
+    hand, obj, grasp = problem.hand, problem.obj, problem.grasp0
+    r = hand.fingers.index("middle")
+    goal = problem.grasp_goal.tip_centers_object[r]
+    nlp = FingerGaitNLP(hand, obj, "middle")
+    res = nlp.solve(grasp.q, grasp.T_palm_object, goal)
+    assert res.success, res.status
+    T_object_palm = inv_T(grasp.T_palm_object)
+    c0, c1 = (transform_points(T_object_palm, hand.tip_positions(q)[r][None])[0] for q in (grasp.q, res.q))
+    assert np.linalg.norm(c1 - c0) <= nlp.options.eta + 1e-9
+    exact = -trimesh.proximity.signed_distance(obj.mesh, c1[None])[0]  # trimesh: positive inside
+    assert abs(exact - hand.tip_radius) <= 1e-4
+    assert np.linalg.norm(c1 - goal) < np.linalg.norm(c0 - goal) - 0.005
