@@ -227,4 +227,6 @@ def input_problem(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> 
         return "zeta and eta must be positive, beta and max_iters non-negative"
     if any(c is not None and not c >= 0 for c in (gait.self_clearance, in_grasp.self_clearance)):
         return "self_clearance must be non-negative or None (no self-collision constraints)"
+    if options.sd_escape_gain is not None and not options.sd_escape_gain >= 0:
+        return f"sd_escape_gain must be non-negative (m) or None, got {options.sd_escape_gain}"
     return grasp0.inconsistency("grasp0")
