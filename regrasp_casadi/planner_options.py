@@ -119,8 +119,8 @@ class PlannerOptions:
     (`final_moves.pose_distance`, m) is followed, in the same iteration, by a reposing towards the SVD
     target (`in_grasp.svd_target`: the goal contacts brought towards the tips); None: never. An addition
     to the paper: the workspaces' target cannot pull a goal that is inside a finger's workspace hull but
-    out of its reach, and the desired pose can be blocked by the grasp on the way (generated bowl seed 6
-    and cup seed 4 stalled so, their escapes creeping < 1 mm per iteration; both converge with it)."""
+    out of its reach, and the desired pose can be blocked by the grasp on the way (the generated cup pair
+    of seed 4 stalled so with SD, its escapes creeping < 1 mm per iteration; it converges with it)."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)
