@@ -463,15 +463,14 @@ def _repose(run: _Run, escape: bool) -> None:
     pose is asked again for part of it (`_REGAIT_REACH`), as `_regait` does. With method "sd", an escape
     that brings the object less than `PlannerOptions.sd_escape_gain` closer to the desired pose is
     followed by a reposing towards the SVD target (the goal contacts brought to the tips)."""
-    n_steps = len(run.steps)
-    before = pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj)
+    n_steps, gain = len(run.steps), run.options.sd_escape_gain
+    fallback = escape and run.options.method == "sd" and gain is not None
+    before = pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj) if fallback else 0.0
     for reach in _REGAIT_REACH if escape else (1.0,):
         run.repose(escape=escape, reach=reach)
         if len(run.steps) > n_steps:
             break
-    gain = run.options.sd_escape_gain
-    if escape and run.options.method == "sd" and gain is not None and \
-            before - pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj) < gain:
+    if fallback and before - pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj) < gain:
         run.repose(escape=False, contacts_target=True)
 
 

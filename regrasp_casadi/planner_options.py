@@ -215,8 +215,9 @@ def input_problem(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> 
         return f"unknown method {options.method!r} (use 'svd' or 'sd')"
     if options.gait_order not in ("pattern", "stability", "search"):
         return f"unknown gait_order {options.gait_order!r} (use 'pattern', 'stability' or 'search')"
-    if stability_problem(options):
-        return stability_problem(options)
+    stability = stability_problem(options)
+    if stability:
+        return stability
     if options.gait is not None:
         unknown = [f for f in options.gait if f not in grasp0.hand.fingers]
         if unknown:
