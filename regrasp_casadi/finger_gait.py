@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from regrasp_casadi import signed_distance, terms
 from regrasp_casadi import solver as _solver
 from regrasp_casadi.constants import ETA
-from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES
+from regrasp_casadi.convex import LOCAL_PIECES, LOCAL_PLANES, select_local_planes_batch
 from regrasp_casadi.self_collision import SelfCollisionConstraint
 from regrasp_casadi.signed_distance import DEFAULT_TAU
 
@@ -43,6 +43,10 @@ class FingerGaitOptions(_solver.NLPOptions):
     """Exact-contact tolerance: re-solve with a corrected offset until |SD_exact(tip) − r| ≤ this, m."""
     max_corrections: int = 4
     """Re-solves of the exact-contact correction after the first solve."""
+    clearance_pieces: int = 2
+    """Convex pieces in each non-tip sphere's local plane set (`convex.select_local_planes_batch`)."""
+    clearance_local_planes: int = 8
+    """Planes per piece in each non-tip sphere's local plane set."""
 
 
 @dataclass(frozen=True)
@@ -69,9 +73,9 @@ class FingerGaitResult(_solver.SolveStats):
     """The step bound of the solve, m (the options' η or the shorter one asked for)."""
 
 
-def _param_layout(n: int, k: int, n_planes: int) -> _solver.ParamLayout:
-    """OPT1's parameters for a hand of `n` joints, a finger of `k` non-tip spheres and `n_planes` local
-    planes near the tip."""
+def _param_layout(n: int, k: int, n_planes: int, n_sphere_planes: int) -> _solver.ParamLayout:
+    """OPT1's parameters for a hand of `n` joints, a finger of `k` non-tip spheres, `n_planes` local
+    planes near the tip and `n_sphere_planes` near each other sphere."""
     return _solver.ParamLayout([
         ("q_all", (n,)),  # joints at the start of the gait, rad (the other fingers keep them)
         ("R_palm_object", (3, 3)),  # object pose, palm frame
@@ -81,6 +85,8 @@ def _param_layout(n: int, k: int, n_planes: int) -> _solver.ParamLayout:
         ("delta_l", (k,)),  # exact-distance offsets of the finger's other spheres, m
         ("normals_tip", (3 * n_planes,)),  # local planes near the tip, as local_signed_distance
         ("offsets_tip", (n_planes,)),  # reads them (C order of ObjectModel.local_planes), object frame
+        ("normals_l", (3 * n_sphere_planes, k)),  # each column: the local planes near one other sphere,
+        ("offsets_l", (n_sphere_planes, k)),  # (C order of convex.select_local_planes), object frame
     ])
 
 
@@ -111,8 +117,15 @@ class FingerGaitNLP:
     ``||f_{r,g} − FK_r||²`` becomes the distance to the goal tip centre ``c_{r,g} = f_{r,g} + ρ n(f_{r,g})``
     (n the outward surface normal); `L_r` are the finger's other collision spheres (radius ρ_l); SD is the
     smooth signed distance of `ObjectModel`: for the tip, from the planes near its path
-    (`ObjectModel.local_planes`, passed as parameters, so the NLP does not grow with the mesh); for the
-    other spheres, from the coarse pieces (`clearance_distance_function`). The offsets δ (parameters)
+    (`ObjectModel.local_planes`, passed as parameters, so the NLP does not grow with the mesh); for each
+    other sphere, from its own local plane set (`clearance_pieces` nearest pieces, `clearance_local_planes`
+    planes each, `convex.select_local_planes_batch`: parameters, taken at the spheres' centres at the start
+    and at every solution of the correction loop, as OPT2's `local_clearance`). Until 2026-12-06 these were
+    the object's coarse pieces, 16 planes each, in the graph: on the 4-piece YCB models a third of the
+    Hessian's instructions (125,590 → 77,445 for the index on mustard) and OPT1 7.3 → 6.3 ms per call on
+    the paper benchmark (benchmarks/README). A piece left out of a set may become the nearest one away
+    from where it was taken: the exact check at the solution corrects the offsets or rejects the gait, as
+    for the tip. The offsets δ (parameters)
     make contacts exact: after a solve, δ = SD_exact − SD_smooth at the solution and the NLP is solved
     again (warm started) until the tip sits on the real mesh within `surface_tol`. Where that loop does
     not settle (the offsets of one solution do not fit the next), the iterate nearest the goal whose
@@ -130,7 +143,7 @@ class FingerGaitNLP:
 
     Decision variables: the finger's joints (n_r,). Parameters (`layout`): the full joint vector (n,),
     the object pose (R (3, 3), t (3,)), the goal tip centre (3,) object frame, δ_tip (1,), δ_l (k,), the
-    tip's local planes (normals, offsets).
+    tip's local planes (normals, offsets) and the other spheres' (one column each).
     The objective is in cm² and the distance constraints in mm, for IPOPT's tolerances.
     """
 
@@ -148,14 +161,15 @@ class FingerGaitNLP:
         self._radii = radii
         # exact distances are needed only for points that may be within a sphere radius + 1 cm
         self._near = np.concatenate([[hand.tip_radius], radii]) + 0.01
-        sd_coarse = obj.clearance_distance_function(o.clearance_planes, o.tau)
         tau = float(DEFAULT_TAU if o.tau is None else o.tau)
         n_local = self._n_local = min(LOCAL_PIECES, len(obj.pieces))  # pieces per local plane set
+        self._sphere_sets = (int(o.clearance_pieces), int(o.clearance_local_planes))  # the other spheres'
 
         # decision variables
         q_r = ca.SX.sym("q_r", idx.size)
         # parameters
-        self.layout = _param_layout(n, k, n_local * LOCAL_PLANES)
+        self.layout = _param_layout(n, k, n_local * LOCAL_PLANES,
+                                    o.clearance_pieces * o.clearance_local_planes)
         p, P = self.layout.symbols()
         q_all, R, t = P["q_all"], P["R_palm_object"], P["t_palm_object"]
 
@@ -166,7 +180,9 @@ class FingerGaitNLP:
         c_obj = terms.to_object_frame(R, t, c_palm)
         if k:
             s_obj = terms.to_object_frame(R, t, hand.sphere_centers_function(finger)(q_full))
-            sd_l = terms.smooth_signed_distances(sd_coarse, s_obj)
+            N_l, H_l = P["normals_l"], P["offsets_l"]
+            sd_l = ca.vertcat(*[signed_distance.local_signed_distance(
+                N_l[:, i], H_l[:, i], s_obj[:, i], o.clearance_pieces, tau) for i in range(k)])
         else:
             s_obj = ca.SX(3, 0)
             sd_l = ca.SX(0, 1)
@@ -209,10 +225,29 @@ class FingerGaitNLP:
 
     def _params(self, q, T, c_goal, delta, planes) -> NDArray[np.float64]:
         """p of a solve from (`q`, `T`) towards `c_goal` with offsets `delta` (1 + k,) (tip, then the
-        other spheres) and the tip's local `planes` (normals, offsets)."""
+        other spheres) and the local `planes` (`_planes`)."""
         return self.layout.pack(q_all=q, R_palm_object=T[:3, :3], t_palm_object=T[:3, 3],
                                 p_object_tip_goal=c_goal, delta_tip=delta[:1], delta_l=delta[1:],
-                                normals_tip=planes[0].ravel(), offsets_tip=planes[1].ravel())
+                                normals_tip=planes[0].ravel(), offsets_tip=planes[1].ravel(),
+                                normals_l=planes[2], offsets_l=planes[3])
+
+    def _planes(self, tip_points: list[NDArray], sphere_points: list[NDArray]) -> tuple[NDArray, ...]:
+        """The local plane sets of a solve: the tip's near `tip_points` ((3,) each, object frame, m) and
+        each other sphere's near its centres in `sphere_points` ((k, 3) each): (normals, offsets) of the
+        tip (`ObjectModel.local_planes`), then of the spheres ((3·n, k), (n, k) blocks)."""
+        N_tip, H_tip = self.obj.local_planes(tip_points, self._n_local)
+        n_pieces, n_planes = self._sphere_sets
+        if not self._k:
+            return N_tip, H_tip, np.zeros((3 * n_pieces * n_planes, 0)), np.zeros((n_pieces * n_planes, 0))
+        pts = np.stack([np.asarray(c, float) for c in sphere_points], axis=1)  # (k, s, 3)
+        N, H = select_local_planes_batch(self.obj.pieces, pts, n_pieces, n_planes)
+        return N_tip, H_tip, N.reshape(self._k, -1).T.copy(), H.reshape(self._k, -1).T.copy()
+
+    def _sphere_centres(self, q, T, x) -> NDArray[np.float64]:
+        """(k, 3) centres of the finger's other spheres, object frame, m, with its joints at `x` (n_r,)."""
+        q_full = np.array(q, dtype=float)
+        q_full[self._idx] = x
+        return (np.asarray(self.hand.sphere_centers(q_full, self.finger), float) - T[:3, 3]) @ T[:3, :3]
 
     def _evaluate(self, q_r, p) -> _Evaluation:
         """Tip centre (object frame) and the exact and smooth (no offsets) distances (1 + k,) of the tip
@@ -244,7 +279,9 @@ class FingerGaitNLP:
         c0 = (self.hand.tip_positions(q)[r] - T[:3, 3]) @ T[:3, :3]  # tip centre, object frame
         reach = min(1.0, 1.5 * o.eta / max(float(np.linalg.norm(c_goal - c0)), 1e-12))
         selection = [c0 + s * reach * (c_goal - c0) for s in (0.0, 0.25, 0.5, 0.75, 1.0)]
-        planes = self.obj.local_planes(selection, self._n_local)  # the planes that matter along the way
+        spheres = [self._sphere_centres(q, T, x0)] + (  # the spheres' planes: at the start (and the init)
+            [self._sphere_centres(q, T, np.asarray(q_init, float)[self._idx])] if q_init is not None else [])
+        planes = self._planes(selection, spheres)  # the planes that matter along the way
 
         def params(delta, planes):
             return self._params(q, T, c_goal, delta, planes)
@@ -263,7 +300,8 @@ class FingerGaitNLP:
 
         def new_offsets(x, ev: _Evaluation, offsets):
             selection.append(ev.p_object_tip)  # re-select the planes with the solution point
-            planes = self.obj.local_planes(selection, self._n_local)
+            spheres.append(self._sphere_centres(q, T, x))
+            planes = self._planes(selection, spheres)
             return ev.exact - self._smooth(x, params(np.zeros(1 + self._k), planes)), planes
 
         iterates: list[tuple[NDArray[np.float64], _Evaluation]] = []

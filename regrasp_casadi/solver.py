@@ -100,8 +100,6 @@ class NLPOptions:
     """β, clearance the hand's non-contact spheres keep from the object, m (paper: 1 mm)."""
     tau: float | None = None
     """Temperature of the object's smooth signed distance (None: the object's default), m."""
-    clearance_planes: int = 16
-    """Planes per convex piece of the coarse distance used for the clearance constraints."""
     max_corrections: int = 2
     """Re-solves with exact-distance offsets after the first solve."""
     print_level: int = 0

@@ -1,6 +1,6 @@
 """A stalled finger's gait started along the joint-space way to its goal (`long_gait`): the ring of the
 generated mug pair of seed 2, stuck at an edge of the mug with the object at the desired pose (the paper
-planner's sd plan stalled there before), gets out where OPT1 from its own joints does not."""
+planner's sd plan stalled there before), gets out; the ring of seed 1 gets through only from its IK."""
 
 from __future__ import annotations
 
@@ -33,7 +33,14 @@ def _exact_contact_error(problem, q, T, r):
     return float(np.linalg.norm(contact - problem.grasp_goal.contacts_object[r]))
 
 
-def test_the_ring_gets_out_of_opt1s_local_minimum(problem):
+@pytest.mark.parametrize("start", ["own joints", "part way"])
+def test_the_ring_stuck_at_the_mug_edge_moves_on(problem, start):
+    """The ring 17 mm from its goal where the plan stalled: OPT1 from part of the way to its IK at the goal
+    (`long_gait`'s second start) gets it millimetres closer, within OPT1's constraints by trimesh's exact
+    distances. So does OPT1 from its own joints since its non-tip spheres have local plane sets: with the
+    object's coarse pieces (16 planes each, containing the mesh) it moved the ring less than 0.5 mm from
+    there, a local minimum of the coarse model, not of the mug (from its own joints it now moves η,
+    17.1 → 10.0 mm, links ≥ 3 mm clear)."""
     hand, obj, g0 = problem.hand, problem.obj, problem.grasp0
     r, T = hand.fingers.index("ring"), g0.T_palm_object
     goal_tip = problem.grasp_goal.tip_centers_object[r]
@@ -42,14 +49,13 @@ def test_the_ring_gets_out_of_opt1s_local_minimum(problem):
     before = _exact_contact_error(problem, g0.q, T, r)
     assert before > 0.015  # 17 mm: the stalled plan's ring
 
-    stuck = nlp.solve(g0.q, T, goal_tip)  # from its own joints: no way on
-    assert _exact_contact_error(problem, stuck.q, T, r) > before - 5e-4
-
-    way = float(np.linalg.norm(goal_tip - g0.tip_centers_object[r]))
-    q_goal, e = tip_ik(hand, g0.q, ["ring"], (T[:3, :3] @ goal_tip + T[:3, 3])[None],
-                       np.asarray(hand.finger_joints["ring"]), g0.q)
-    assert np.linalg.norm(e) < 1e-3  # the goal is within reach at this pose
-    q_init = g0.q + min(1.0, options.eta / way) * (q_goal - g0.q)
+    q_init = None
+    if start == "part way":
+        way = float(np.linalg.norm(goal_tip - g0.tip_centers_object[r]))
+        q_goal, e = tip_ik(hand, g0.q, ["ring"], (T[:3, :3] @ goal_tip + T[:3, 3])[None],
+                           np.asarray(hand.finger_joints["ring"]), g0.q)
+        assert np.linalg.norm(e) < 1e-3  # the goal is within reach at this pose
+        q_init = g0.q + min(1.0, options.eta / way) * (q_goal - g0.q)
     res = nlp.solve(g0.q, T, goal_tip, q_init=q_init)
     assert res.success
     assert _exact_contact_error(problem, res.q, T, r) < before - 0.003  # millimetres closer
@@ -146,10 +152,12 @@ def _transit_dip(problem, path, finger: str, beta: float) -> float:
 
 def test_a_gait_started_at_the_goal_ik_gets_through_where_the_others_graze_the_mug():
     """The ring of the generated mug pair of seed 1 (svd), 41.5 mm from its goal contact: OPT1 from its own
-    joints or from part of the way to its IK at the goal moves it η but its transit brings a sphere closer
-    to the mug than β (and than at the transit's ends); OPT1 started at that IK (the first start
-    `long_gait` tries) moves it η towards its goal with a transit that does not, by trimesh's exact
-    distances."""
+    joints or from part of the way to its IK at the goal gives no gait the hand can follow (since OPT1's
+    local clearance planes: from its own joints IPOPT reports the problem infeasible; from part of the way
+    it moves η but its transit brings a sphere 0.33 mm closer to the mug than β and than at the transit's
+    ends; with the coarse pieces before, both moved with such a transit); OPT1 started at that IK (the
+    first start `long_gait` tries) moves it η towards its goal with a transit that does not, by trimesh's
+    exact distances."""
     from dataclasses import replace
 
     from regrasp_casadi.plan import PlanStep
@@ -172,14 +180,16 @@ def test_a_gait_started_at_the_goal_ik_gets_through_where_the_others_graze_the_m
     outcome = {}
     for name, q_init in (("own", None), ("part way", q + options.eta / way * (q_goal - q)), ("ik", q_goal)):
         res = nlp.solve(q, T, goal_tip, q_init=q_init)
-        assert res.success, name
+        if not res.success:  # rejected by OPT1's exact checks
+            outcome[name] = (False, None, None)
+            continue
         assert np.linalg.norm(hand.tip_positions(res.q)[r] - hand.tip_positions(q)[r]) <= options.eta + 1e-6
         path = step_path(ctx, start, replace(start, kind="gait", finger="ring", q=res.q))
         outcome[name] = (path.ok, _transit_dip(problem, path, "ring", options.beta),
                          _exact_contact_error(problem, res.q, T, r))
-    for name in ("own", "part way"):
+    for name in ("own", "part way"):  # no gait, or one whose transit dips below its floor
         ok, dip, _ = outcome[name]
-        assert not ok and dip < -5e-5, (name, outcome[name])  # (-0.11 mm)
+        assert not ok and (dip is None or dip < -5e-5), (name, outcome[name])
     ok, dip, after = outcome["ik"]
     assert ok and dip >= -1e-5, outcome["ik"]
     assert after < before - 0.005  # millimetres closer to its goal
