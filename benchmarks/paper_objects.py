@@ -85,6 +85,18 @@ PAPER_OVERALL = {"svd": {"median_time": 75.0, "median_iterations": 44},
 
 
 # ------------------------------------------------------------------------------------ environment
+def _compiled_mode() -> str:
+    """How the NLPs are evaluated (`regrasp_casadi.compiled.mode`: "compile", "cached" — the libraries
+    `regrasp compile` made, where the cache has them — or "off"), with the C compiler found; "off" for a
+    checkout without compiled NLPs."""
+    try:
+        from regrasp_casadi import compiled
+    except ImportError:
+        return "off"
+    mode = compiled.mode(None)
+    return mode if mode == "off" else f"{mode} ({compiled.find_compiler() or 'no C compiler'})"
+
+
 def environment(workers: int) -> dict:
     """Machine and versions: CPU, cores, Python, CasADi, IPOPT, numpy/scipy/trimesh, git commit."""
     import casadi as ca
@@ -118,6 +130,7 @@ def environment(workers: int) -> dict:
         "casadi": ca.__version__,
         "ipopt": _ipopt_version(),
         "linear_solver": "mumps",
+        "compiled_mode": _compiled_mode(),
         "numpy": np.__version__,
         "scipy": scipy.__version__,
         "trimesh": trimesh.__version__,
@@ -307,7 +320,8 @@ def markdown(summary: dict, env: dict) -> str:
     lines = [
         f"Machine: {env['cpu']} ({env['cores']} cores, {env['workers'] or 'all'} worker(s), "
         f"{env.get('backend', 'process')} backend); Python "
-        f"{env['python']}, CasADi {env['casadi']}, IPOPT {env['ipopt']} ({env['linear_solver']}); commit "
+        f"{env['python']}, CasADi {env['casadi']}, IPOPT {env['ipopt']} ({env['linear_solver']}); compiled NLPs: "
+        f"{env.get('compiled_mode', 'off')}; commit "
         f"`{env['git_commit'][:10]}`{' (dirty tree)' if env['git_dirty'] else ''}; {env['date']}.",
         "",
         "| object | method | runs | verified | success (≤ 6 mm) | median time (s) | max time (s) "

@@ -105,7 +105,7 @@ def _compiled_builds() -> dict | None:
     except ImportError:
         return None
     builds = [dataclasses.asdict(r) for r in compiled.build_records()]
-    return {"enabled": compiled.enabled(None), "compiles": compiled.compile_count(), "builds": builds,
+    return {"enabled": compiled.enabled(None), "mode": compiled.mode(None), "compiles": compiled.compile_count(), "builds": builds,
             "compile_s": sum(b["seconds"] for b in builds if b["compiled"]),
             "cache_load_s": sum(b["seconds"] for b in builds if not b["compiled"])}
 

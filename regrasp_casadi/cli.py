@@ -8,6 +8,7 @@
     regrasp grasps MESH_OR_PROBLEM [--hand MODEL] [--n N] [--seed S] [--out problems/x.yaml]
     regrasp bench [--backend process|ray|serial] [--address ADDR] [ARGS ...]
                                       (runs benchmarks/paper_objects.py)
+    regrasp compile [--hand MODEL] [--jobs N]   (the planner's NLPs to C, once per hand: faster solves)
     regrasp demo [--out-dir DIR] [--method svd] [--speed X]
 
 Exit codes:
@@ -19,7 +20,8 @@ Exit codes:
     141 stdout was closed by its reader (`regrasp verify plan.json | head -1`): output stops quietly
 
 Errors are printed as one line, ``regrasp: error: <message>``, on stderr; `--verbose` adds the traceback
-and INFO logging. This is the only module of the package (with the examples) that prints.
+and INFO logging. This is the only module of the package (with the examples and its `cli_*` helpers)
+that prints.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import traceback
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from regrasp_casadi.cli_compile import add_compile_parser
 from regrasp_casadi.cli_simulate import add_simulate_parser
 from regrasp_casadi.cli_tools import (
     HelpFormatter,
@@ -523,6 +526,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_grasps)
 
     _add_bench_parser(add)
+    add_compile_parser(add, DEFAULT_MODEL)
 
     sp = add("demo", "plan, verify and replay a regrasp on the built-in box problem")
     sp.add_argument("--out-dir", default=".", metavar="DIR",

@@ -2,11 +2,14 @@
 the Lagrangian) generated as C by CasADi, compiled by the system C compiler into a shared library and
 loaded by the backend instead of being evaluated by CasADi's virtual machine.
 
-`solver.build_solver` is the one caller: it compiles when `SolverOptions.compiled` is True, or, when
-that is None, when ``$REGRASP_COMPILE`` is "1" (`DEFAULT` when unset). Anything that goes wrong (no C
-compiler on the PATH, a failed or timed-out compilation, a library that does not load) logs one warning
-per kind of failure and per process, and the interpreted solver is returned: compiling never makes a
-build fail.
+`solver.build_solver` is the one caller. Three modes (`mode`): "compile" (`SolverOptions.compiled` True
+or ``$REGRASP_COMPILE=1``): a library is compiled when the cache has none; "cached" (the default, or
+``$REGRASP_COMPILE=cached``): a library already in the cache is used, none is compiled (`regrasp compile`
+fills the cache once per hand: `precompile`); "off" (`compiled` False or ``$REGRASP_COMPILE=0``): always
+interpreted. Compiled and interpreted solvers give the same plans (the paper benchmark's 50 plans: the same
+steps, errors and IPOPT iterations, 2026-12-06). Anything that goes wrong (no C compiler on the PATH, a
+failed or timed-out compilation, a library that does not load) logs one warning per kind of failure and
+per process, and the interpreted solver is returned: compiling never makes a build fail.
 
     >>> solver = compiled.solver("in_grasp_svd", nlp, "ipopt", opts)   # compiled, or interpreted
 
@@ -37,16 +40,19 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-__all__ = ["ENV_VAR", "DEFAULT", "COMPILERS", "CFLAGS", "BuildRecord", "enabled", "find_compiler",
-           "library_key", "library_path", "solver", "compile_count", "build_records"]
+__all__ = ["ENV_VAR", "DEFAULT", "MODES", "COMPILERS", "CFLAGS", "BuildRecord", "mode", "enabled",
+           "find_compiler", "library_key", "library_path", "solver", "compile_count", "build_records"]
 
 _log = logging.getLogger(__name__)
 
 ENV_VAR = "REGRASP_COMPILE"
-"""Environment variable of the process-wide switch: "1" compiles, "0" does not (unset: `DEFAULT`)."""
-DEFAULT = False
-"""Whether NLPs are compiled when neither the option nor `ENV_VAR` says (off: compiling the NLPs of one
-object takes minutes, each a ~1.5x faster solve; see the module docstring)."""
+"""Environment variable of the process-wide mode: "1" compile, "cached", "0" off (unset: `DEFAULT`)."""
+MODES = ("compile", "cached", "off")
+"""The modes (module docstring)."""
+DEFAULT = "cached"
+"""The mode when neither the option nor `ENV_VAR` says: compiled libraries are used once `regrasp compile`
+has made them (compiling the planner's NLPs takes minutes, once per hand and machine; each solve is then
+2-3x faster), and none is compiled unasked."""
 COMPILERS = ("cc", "gcc")
 """C compilers looked for on the PATH, in order."""
 CFLAGS = ("-O1", "-fPIC", "-shared")
@@ -93,18 +99,27 @@ def build_records() -> list[BuildRecord]:
     return list(_RECORDS)
 
 
-def enabled(option: bool | None) -> bool:
-    """Whether to compile: `option` when given, else ``$REGRASP_COMPILE`` ("1"/"0"), else `DEFAULT`."""
+def mode(option: bool | None) -> str:
+    """The mode of a build (one of `MODES`): "compile" / "off" for `option` True / False, else
+    ``$REGRASP_COMPILE`` ("1", "cached", "0"), else `DEFAULT`."""
     if option is not None:
-        return bool(option)
+        return "compile" if option else "off"
     value = os.environ.get(ENV_VAR, "").strip().lower()
-    if value in ("1", "true", "yes", "on"):
-        return True
+    if value in ("1", "true", "yes", "on", "compile"):
+        return "compile"
     if value in ("0", "false", "no", "off"):
-        return False
+        return "off"
+    if value == "cached":
+        return "cached"
     if value:
-        _warn_once(f"env:{value}", "%s=%r is not 0 or 1; using the default (%s)", ENV_VAR, value, DEFAULT)
+        _warn_once(f"env:{value}", "%s=%r is not 1, cached or 0; using the default (%s)", ENV_VAR, value,
+                   DEFAULT)
     return DEFAULT
+
+
+def enabled(option: bool | None) -> bool:
+    """Whether a build compiles a library the cache lacks (`mode` "compile")."""
+    return mode(option) == "compile"
 
 
 def find_compiler() -> str | None:
@@ -156,20 +171,26 @@ def library_path(key: str) -> pathlib.Path:
     return cache_dir() / "jit" / f"nlp_{key}.so"
 
 
-def solver(name: str, nlp: dict, backend: str, opts: dict) -> ca.Function:
+def solver(name: str, nlp: dict, backend: str, opts: dict, compile_missing: bool = True) -> ca.Function:
     """The `backend` solver of `nlp` named `name` with options `opts`, evaluated from a compiled library
     (cached on disk); the interpreted solver when no compiler is found or compilation fails (one
-    warning per kind of failure and process)."""
+    warning per kind of failure and process), or, with `compile_missing` False, when the cache has no
+    library of it (no warning: mode "cached")."""
+    if not compile_missing and not _any_library():  # nothing compiled on this machine: skip the key
+        return ca.nlpsol(name, backend, nlp, opts)  # (serializing OPT2 and its Hessian takes ~0.6 s)
     compiler = find_compiler()
     if compiler is None:
-        _warn_once("no-compiler", "no C compiler (%s) on the PATH: NLPs are solved interpreted",
-                   "/".join(COMPILERS))
+        if compile_missing:
+            _warn_once("no-compiler", "no C compiler (%s) on the PATH: NLPs are solved interpreted",
+                       "/".join(COMPILERS))
         return ca.nlpsol(name, backend, nlp, opts)
     interpreted = None
     try:
         t0 = time.perf_counter()
         path = library_path(library_key(nlp, backend, opts, compiler))
         fresh = not path.is_file()
+        if fresh and not compile_missing:
+            return ca.nlpsol(name, backend, nlp, opts)
         if fresh:
             interpreted = ca.nlpsol(name, backend, nlp, opts)
             _compile(interpreted, path, compiler)
@@ -183,6 +204,12 @@ def solver(name: str, nlp: dict, backend: str, opts: dict) -> ca.Function:
     _RECORDS.append(BuildRecord(name, str(path), fresh, seconds))
     _log.info("%s NLP %s in %.2f s (%s)", "compiled" if fresh else "loaded", name, seconds, path)
     return result
+
+
+def _any_library() -> bool:
+    """Whether the cache holds any compiled library (``<cache dir>/jit/nlp_*.so``)."""
+    folder = library_path("").parent
+    return folder.is_dir() and any(folder.glob("nlp_*.so"))
 
 
 def _compile(interpreted: ca.Function, target: pathlib.Path, compiler: str) -> None:

@@ -83,15 +83,16 @@ _BUILT: OrderedDict[str, ca.Function] = OrderedDict()
 
 
 def solver_key(name: str, backend: str, nlp: dict, opts: dict, curved_rows: Sequence[int] | None,
-               use_compiled: bool) -> str:
+               compiled_mode: str) -> str:
     """SHA-256 of everything a built solver depends on: its NLP's expressions (x, p -> f, g, serialized),
-    the backend's options, the curved rows, whether it is compiled, and its name. An NLP whose object data
-    are parameters (OPT2's) has the same expressions for every object, so it is built once per process
-    (its Hessian with common subexpressions eliminated takes ~2 s), not once per object."""
+    the backend's options, the curved rows, the compiled mode (`compiled.mode`), and its name. An NLP whose
+    object data are parameters (OPT2's; OPT1's for every object of two or more convex pieces) has the same
+    expressions for every object, so it is built once per process (its Hessian with common subexpressions
+    eliminated takes ~2 s), not once per object."""
     x = nlp["x"]
     f = ca.Function("key", [x, nlp.get("p", type(x)(0, 1))], [nlp["f"], nlp.get("g", type(x)(0, 1))])
     rows = None if curved_rows is None else sorted(set(int(i) for i in curved_rows))
-    text = repr((name, backend, sorted(opts.items()), rows, use_compiled, ca.__version__))
+    text = repr((name, backend, sorted(opts.items()), rows, compiled_mode, ca.__version__))
     return hashlib.sha256(f.serialize().encode() + text.encode()).hexdigest()
 
 

@@ -87,7 +87,9 @@ class SolverOptions:
     """Sparse linear solver of the Newton steps."""
     compiled: bool | None = None
     """Evaluate the NLP's functions from C compiled by the system compiler (`compiled`, cached on disk)
-    instead of CasADi's virtual machine; None: ``$REGRASP_COMPILE`` ("1"/"0"), else `compiled.DEFAULT`."""
+    instead of CasADi's virtual machine, compiling it when the disk cache lacks it; False: never; None:
+    ``$REGRASP_COMPILE`` ("1", "cached": only libraries already cached, "0"), else `compiled.DEFAULT`
+    ("cached")."""
 
 
 @dataclass(frozen=True)
@@ -210,20 +212,22 @@ def build_solver(name: str, nlp: dict, options: SolverOptions | None = None,
     """Build the solver of `nlp` ({"x", "p", "f", "g"} CasADi expressions) with `BACKEND`; `name` names
     the CasADi function (it shows in profiles and in `solver.name()`). `curved_rows`: the constraint rows
     whose curvature the Hessian of the Lagrangian includes (`lagrangian_hessian`; None: all, the exact
-    Hessian). Compiled to C when `compiled.enabled(options.compiled)` (falling back to the interpreted
-    solver if that fails). A solver built before in this process from the same expressions and options
-    is returned again (`nlp_cache.solver_key`)."""
+    Hessian). Evaluated from compiled C as `compiled.mode(options.compiled)` says (the library compiled
+    when missing, or only used when cached; the interpreted solver otherwise or if that fails). A solver
+    built before in this process from the same expressions and options is returned again
+    (`nlp_cache.solver_key`)."""
     options = options or SolverOptions()
     opts = backend_options(options)
-    use_compiled = compiled.enabled(options.compiled)
-    key = nlp_cache.solver_key(name, BACKEND, nlp, opts, curved_rows, use_compiled)
+    mode = compiled.mode(options.compiled)
+    key = nlp_cache.solver_key(name, BACKEND, nlp, opts, curved_rows, mode)
     solver = nlp_cache.built_solver(key)  # OPT2's expressions are the same for every object
     if solver is not None:
         return solver
     if curved_rows is not None:
         opts["hess_lag"] = lagrangian_hessian(nlp, curved_rows)
-    if use_compiled:
-        return nlp_cache.keep_solver(key, compiled.solver(name, nlp, BACKEND, opts))
+    if mode != "off":
+        return nlp_cache.keep_solver(key, compiled.solver(name, nlp, BACKEND, opts,
+                                                          compile_missing=mode == "compile"))
     return nlp_cache.keep_solver(key, ca.nlpsol(name, BACKEND, nlp, opts))
 
 

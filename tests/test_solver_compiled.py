@@ -50,7 +50,7 @@ def fresh_warnings(monkeypatch):
 
 
 def _build(monkeypatch, switch: str, make):
-    """`make()` with ``$REGRASP_COMPILE`` set to `switch` ("0" or "1")."""
+    """`make()` with ``$REGRASP_COMPILE`` set to `switch` ("0", "1" or "cached")."""
     with monkeypatch.context() as mp:
         mp.setenv(compiled.ENV_VAR, switch)
         return make()
@@ -65,16 +65,19 @@ def _same(a, b):
 
 
 def test_switch_and_option():
-    """The option wins over the environment variable, which wins over the default."""
+    """The option wins over the environment variable, which wins over the default ("cached")."""
+    assert compiled.mode(True) == "compile" and compiled.mode(False) == "off"
     assert compiled.enabled(True) and not compiled.enabled(False)
     old = os.environ.get(compiled.ENV_VAR)
     try:
         os.environ[compiled.ENV_VAR] = "1"
-        assert compiled.enabled(None) and not compiled.enabled(False)
+        assert compiled.mode(None) == "compile" and compiled.mode(False) == "off"
         os.environ[compiled.ENV_VAR] = "0"
-        assert not compiled.enabled(None) and compiled.enabled(True)
+        assert compiled.mode(None) == "off" and compiled.mode(True) == "compile"
+        os.environ[compiled.ENV_VAR] = "cached"
+        assert compiled.mode(None) == "cached" and not compiled.enabled(None)
         del os.environ[compiled.ENV_VAR]
-        assert compiled.enabled(None) is compiled.DEFAULT
+        assert compiled.mode(None) == compiled.DEFAULT == "cached"
     finally:
         if old is None:
             os.environ.pop(compiled.ENV_VAR, None)
@@ -102,6 +105,11 @@ def test_opt1_compiled_matches_interpreted_and_is_cached(jit_cache, monkeypatch,
     before = set(folder.iterdir()) if folder.exists() else set()
     interpreted = _build(monkeypatch, "0", make)
     n0 = compiled.compile_count()
+    records = len(compiled.build_records())
+    _build(monkeypatch, "cached", make)  # nothing cached yet: interpreted, nothing compiled
+    assert compiled.compile_count() == n0 and len(compiled.build_records()) == records
+    assert not folder.exists() or set(folder.iterdir()) == before
+    nlp_cache.clear_built_solvers()
     fast = _build(monkeypatch, "1", make)
     assert compiled.compile_count() == n0 + 1
     new = set(folder.iterdir()) - before
@@ -115,12 +123,14 @@ def test_opt1_compiled_matches_interpreted_and_is_cached(jit_cache, monkeypatch,
     assert a.success
     _same(a, b)
 
-    nlp_cache.clear_built_solvers()  # as in a new process
-    again = _build(monkeypatch, "1", make)  # a new NLP object: same expressions, same key
-    assert compiled.compile_count() == n0 + 1
-    assert library.stat().st_mtime_ns == mtime
-    assert compiled.build_records()[-1].compiled is False
-    _same(a, again.solve(g0.q, g0.T_palm_object, goal))
+    for switch in ("1", "cached"):  # a new NLP object: same expressions, same key; loaded, not compiled
+        nlp_cache.clear_built_solvers()  # as in a new process
+        again = _build(monkeypatch, switch, make)
+        assert compiled.compile_count() == n0 + 1
+        assert library.stat().st_mtime_ns == mtime
+        assert compiled.build_records()[-1].compiled is False
+        assert compiled.build_records()[-1].path == str(library)
+        _same(a, again.solve(g0.q, g0.T_palm_object, goal))
 
 
 @pytest.mark.skipif(compiled.find_compiler() is None, reason="no C compiler")
@@ -132,7 +142,7 @@ def test_opt2_is_one_nlp_per_hand(monkeypatch):
     hulls only)."""
     keys = []
 
-    def record(name, nlp, backend, opts):  # the key `compiled.solver` would compile under, no compiling
+    def record(name, nlp, backend, opts, compile_missing=True):  # the key `compiled.solver` would use
         keys.append(compiled.library_key(nlp, backend, opts, compiled.find_compiler()))
         return ca.nlpsol(name, backend, nlp, opts)
 
@@ -231,3 +241,38 @@ def test_a_hessian_without_a_rows_curvature_is_compiled_under_its_own_key(jit_ca
     np.testing.assert_allclose(hess, np.triu(3.0 * np.eye(2)), atol=1e-12)
     sol = s(x0=[1.0, 1.0], p=2.0, lbx=-10, ubx=10, lbg=-1, ubg=1)
     np.testing.assert_allclose(np.asarray(sol["x"]).ravel(), [2.0, 0.0], atol=1e-6)
+
+
+def test_regrasp_compile_covers_every_nlp_a_plan_builds(monkeypatch):
+    """`precompile`'s NLPs (what `regrasp compile` puts in the cache) have every compiled-library key the
+    planner asks for, both methods, on an object of one convex piece (the box) and of several (the
+    bottle): after `regrasp compile` no plan of the hand compiles or falls back to the interpreted
+    solver. Keys only (`compiled.solver` replaced by a recorder): nothing is compiled."""
+    from regrasp_casadi import precompile
+    from regrasp_casadi.planner import plan_regrasp
+
+    keys: dict[str, set[str]] = {"precompile": set(), "plans": set()}
+    into = "precompile"
+
+    def record(name, nlp, backend, opts, compile_missing=True):
+        keys[into].add(compiled.library_key(nlp, backend, opts, compiled.find_compiler() or "cc"))
+        return ca.nlpsol(name, backend, nlp, opts)
+
+    monkeypatch.setattr(compiled, "solver", record)
+    monkeypatch.setenv(compiled.ENV_VAR, "1")
+    hand_source = ("model", "allegro_right")
+    for _, kind, arg in precompile.planner_nlps(precompile.load_hand(*hand_source)):
+        precompile._build(hand_source, kind, arg)
+    monkeypatch.setenv(compiled.ENV_VAR, "1")  # (`_build` sets it in its worker)
+    into = "plans"
+    pieces = []
+    for name in ("box_rotate", "bottle_regrasp"):
+        problem = RegraspProblem.load(PROBLEMS / f"{name}.yaml")
+        pieces.append(len(problem.obj.pieces))
+        for method in ("svd", "sd"):
+            nlp_cache.clear_built_solvers()
+            plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, stability="none", max_iters=1,
+                         cache=nlp_cache.NLPCache())
+    assert pieces[0] == 1 and pieces[1] > 1
+    assert len(keys["precompile"]) == 10  # OPT2 x 2 methods, OPT1 x 4 fingers x (one, several pieces)
+    assert keys["plans"] and keys["plans"] <= keys["precompile"], len(keys["plans"] - keys["precompile"])
