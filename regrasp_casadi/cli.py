@@ -168,13 +168,6 @@ def _speed(speed: float | None) -> dict[str, float]:
     return {} if speed is None else {"speed": speed}
 
 
-def _hand(name: str):
-    """`--hand`: a URDF file (``*.urdf``), or a hand model (a shipped model's name or a model folder)."""
-    from regrasp_casadi.hand import Hand
-
-    return Hand.from_urdf(name) if name.lower().endswith(".urdf") else Hand.from_model(name)
-
-
 def _view_live(plan: Plan, hand=None, obj=None, host: str = "127.0.0.1", speed: float | None = None) -> int:
     from regrasp_casadi.viewer import show
 
@@ -307,7 +300,9 @@ def cmd_grasps(args: argparse.Namespace) -> int:
             raise _UserError(f"{src}: no such mesh or problem file")
         with progress_bar(f"loading {src.name} (convex decomposition)", progress):
             obj = ObjectModel.from_mesh(src, scale=args.scale)
-            hand = _hand(args.hand)
+            from regrasp_casadi.hand_model import load_hand
+
+            hand = load_hand(args.hand)
     if out is not None:
         from regrasp_casadi.problem import RegraspProblem
 

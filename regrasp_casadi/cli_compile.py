@@ -11,24 +11,16 @@ from __future__ import annotations
 
 import argparse
 
-from regrasp_casadi.cli_tools import UserError, positive_int
+from regrasp_casadi.cli_tools import positive_int
 
 __all__ = ["add_compile_parser", "cmd_compile"]
 
 
 def cmd_compile(args: argparse.Namespace) -> int:
     """Compile (or find cached) every planner NLP of the hand, one line per NLP; exit 1 if one failed."""
-    from regrasp_casadi.compiled import find_compiler, library_path
-    from regrasp_casadi.precompile import load_hand, precompile
+    from regrasp_casadi.precompile import precompile
 
-    if find_compiler() is None:
-        raise UserError("no C compiler (cc or gcc) on the PATH: install one (e.g. Debian's gcc) to compile "
-                        "the NLPs; plans are solved interpreted meanwhile")
-    source = ("urdf", args.hand) if args.hand.lower().endswith(".urdf") else ("model", args.hand)
-    load_hand(*source)  # an unknown or broken hand fails here, before any worker starts
-    print(f"compiling the planner's NLPs for {args.hand} into {library_path('').parent} "
-          f"({args.jobs} at a time; minutes per NLP, once per hand and machine)", flush=True)
-    records = precompile(source, jobs=args.jobs, report=lambda line: print(line, flush=True))
+    records = precompile(args.hand, jobs=args.jobs, report=lambda line: print(line, flush=True))
     failed = [r.name for r in records if not r.path]
     if failed:
         print(f"{len(failed)} NLP(s) could not be compiled and stay interpreted: {', '.join(failed)}")

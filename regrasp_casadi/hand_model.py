@@ -68,6 +68,7 @@ __all__ = [
     "UrdfModel",
     "fallback_metadata",
     "known_models",
+    "load_hand",
     "load_metadata",
     "model_urdf",
     "models_dir",
@@ -148,6 +149,18 @@ class UrdfModel:
     def leaves(self) -> tuple[str, ...]:
         """Links without children, in `link_names` order."""
         return tuple(ln for ln in self.link_names if not self.children[ln])
+
+
+def load_hand(name: str):
+    """The `hand.Hand` that `name` names (a command's ``--hand``): a URDF file (``*.urdf``,
+    `Hand.from_urdf`), else a shipped model's name or a model folder (`Hand.from_model`).
+
+    Raises:
+        ModelError: an unknown model, or a model or URDF that does not load.
+    """
+    from regrasp_casadi.hand import Hand  # (hand imports this module)
+
+    return Hand.from_urdf(name) if name.lower().endswith(".urdf") else Hand.from_model(name)
 
 
 def read_urdf(path: str | Path) -> UrdfModel:

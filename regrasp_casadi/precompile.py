@@ -7,7 +7,7 @@ two or more (the tip's local plane set holds that many pieces). Compiling them t
 Hessians); afterwards every solve is 2-3x faster (`compiled`, mode "cached": a cached library is used
 unless ``$REGRASP_COMPILE=0``).
 
-    >>> records = precompile(Hand.allegro_right(), jobs=2)      # or: regrasp compile --jobs 2
+    >>> records = precompile("allegro_right", jobs=2)      # or: regrasp compile --jobs 2
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from regrasp_casadi.compiled import ENV_VAR
+from regrasp_casadi.errors import RegraspError
 
-__all__ = ["CompiledNLP", "load_hand", "planner_nlps", "precompile"]
+__all__ = ["CompiledNLP", "planner_nlps", "precompile"]
 
 
 @dataclass(frozen=True)
@@ -45,17 +46,18 @@ def planner_nlps(hand) -> list[tuple[str, str, str]]:
     return tasks
 
 
-def _build(hand_source: tuple[str, str], kind: str, arg: str) -> CompiledNLP:
+def _build(hand_name: str, kind: str, arg: str) -> CompiledNLP:
     """Build one task of `planner_nlps` in this process with compiling on (a worker's job)."""
     os.environ[ENV_VAR] = "1"
     from regrasp_casadi import compiled
     from regrasp_casadi.finger_gait import FingerGaitNLP
+    from regrasp_casadi.hand_model import load_hand
     from regrasp_casadi.in_grasp import InGraspNLP
     from regrasp_casadi.nlp_cache import clear_built_solvers
     from regrasp_casadi.objects import ObjectModel
     from regrasp_casadi.planner import PlannerOptions
 
-    hand = load_hand(*hand_source)
+    hand = load_hand(hand_name)
     clear_built_solvers()
     options = PlannerOptions()
     before = len(compiled.build_records())
@@ -72,29 +74,31 @@ def _build(hand_source: tuple[str, str], kind: str, arg: str) -> CompiledNLP:
     return CompiledNLP(records[-1].name, records[-1].compiled, seconds, records[-1].path)
 
 
-def load_hand(kind: str, source: str):
-    """The hand of ("model", name or folder) or ("urdf", path) (`Hand.from_model` / `Hand.from_urdf`)."""
-    from regrasp_casadi.hand import Hand
-
-    return Hand.from_urdf(source) if kind == "urdf" else Hand.from_model(source)
-
-
-def precompile(hand_source: tuple[str, str] = ("model", "allegro_right"), jobs: int = 1,
+def precompile(hand_name: str = "allegro_right", jobs: int = 1,
                report: Callable[[str], None] | None = None) -> list[CompiledNLP]:
-    """Compile (or find in the cache) every NLP of `planner_nlps` for the hand `hand_source` (("model",
-    name or folder) or ("urdf", path)), `jobs` at a time in worker processes; `report(line)` gets one
-    line per NLP as it finishes (default: stderr). Returns them in the order they finished."""
-    from regrasp_casadi.compiled import find_compiler
+    """Compile (or find in the cache) every NLP of `planner_nlps` for the hand `hand_name` (a shipped
+    model's name, a model folder or a URDF file: `hand_model.load_hand`), `jobs` at a time in worker
+    processes; `report(line)` gets a first line, then one per NLP as it finishes (default: stderr).
+    Returns them in the order they finished.
+
+    Raises:
+        RegraspError: no C compiler on the PATH; `ModelError` (one) for a hand that does not load.
+    """
+    from regrasp_casadi.compiled import find_compiler, library_path
+    from regrasp_casadi.hand_model import load_hand
 
     if find_compiler() is None:
-        raise RuntimeError("no C compiler (cc or gcc) on the PATH: the NLPs cannot be compiled")
+        raise RegraspError("no C compiler (cc or gcc) on the PATH: install one (e.g. Debian's gcc) to "
+                           "compile the NLPs; plans are solved interpreted meanwhile")
     say = report or (lambda line: print(line, file=sys.stderr, flush=True))
-    tasks = planner_nlps(load_hand(*hand_source))
+    tasks = planner_nlps(load_hand(hand_name))  # an unknown or broken hand fails here, before any worker
+    say(f"compiling {len(tasks)} NLPs of the planner for {hand_name} into {library_path('').parent} "
+        f"({jobs} at a time; minutes per NLP, once per hand and machine)")
     out: list[CompiledNLP] = []
     method = "forkserver" if sys.platform.startswith("linux") else "spawn"
     with cf.ProcessPoolExecutor(max_workers=max(1, int(jobs)),
                                 mp_context=multiprocessing.get_context(method)) as pool:
-        futures = {pool.submit(_build, hand_source, kind, arg): name for name, kind, arg in tasks}
+        futures = {pool.submit(_build, hand_name, kind, arg): name for name, kind, arg in tasks}
         for k, future in enumerate(cf.as_completed(futures), 1):
             res = future.result()
             out.append(res)

@@ -260,9 +260,10 @@ def test_regrasp_compile_covers_every_nlp_a_plan_builds(monkeypatch):
 
     monkeypatch.setattr(compiled, "solver", record)
     monkeypatch.setenv(compiled.ENV_VAR, "1")
-    hand_source = ("model", "allegro_right")
-    for _, kind, arg in precompile.planner_nlps(precompile.load_hand(*hand_source)):
-        precompile._build(hand_source, kind, arg)
+    from regrasp_casadi.hand_model import load_hand
+
+    for _, kind, arg in precompile.planner_nlps(load_hand("allegro_right")):
+        precompile._build("allegro_right", kind, arg)
     monkeypatch.setenv(compiled.ENV_VAR, "1")  # (`_build` sets it in its worker)
     into = "plans"
     pieces = []
