@@ -45,7 +45,7 @@ class FingerGaitOptions(_solver.NLPOptions):
     """Re-solves of the exact-contact correction after the first solve."""
     clearance_pieces: int = 2
     """Convex pieces in each non-tip sphere's local plane set (`convex.select_local_planes_batch`)."""
-    clearance_local_planes: int = 8
+    clearance_local_planes: int = 16
     """Planes per piece in each non-tip sphere's local plane set."""
 
 
@@ -123,13 +123,14 @@ class FingerGaitNLP:
     and at every solution of the correction loop, as OPT2's `local_clearance`). Until 2026-12-06 these were
     the object's coarse pieces, 16 planes each, in the graph: on the 4-piece YCB models a third of the
     Hessian's instructions (125,590 → 77,445 for the index on mustard) and OPT1 7.3 → 6.3 ms per call on
-    the paper benchmark (benchmarks/README). A piece left out of a set may become the nearest one away
-    from where it was taken: the exact check at the solution corrects the offsets or rejects the gait, as
-    for the tip. The offsets δ (parameters)
-    make contacts exact: after a solve, δ = SD_exact − SD_smooth at the solution and the NLP is solved
-    again (warm started) until the tip sits on the real mesh within `surface_tol`. Where that loop does
-    not settle (the offsets of one solution do not fit the next), the iterate nearest the goal whose
-    other spheres are clear is moved onto the exact surface by Newton steps of the tip (`_polished`).
+    the paper benchmark (benchmarks/README). With 8 planes per piece (2026-12-06) the cup's SVD plan
+    stalled behind the rim; 16 converge it (2026-12-07). A piece left out of a set may become the nearest
+    one away from where it was taken: the exact check at the solution corrects the offsets or rejects the
+    gait, as for the tip. The offsets δ (parameters) make contacts exact: after a solve, δ = SD_exact −
+    SD_smooth at the solution and the NLP is solved again (warm started) until the tip sits on the real
+    mesh within `surface_tol`. Where that loop does not settle (the offsets of one solution do not fit the
+    next), the iterate nearest the goal whose other spheres are clear is moved onto the exact surface by
+    Newton steps of the tip (`_polished`).
     A sphere l already closer than β at the start (OPT2's moves accept down to β/2) keeps at least its
     start clearance instead (β replaced by min(β, its start value)): with β held, IPOPT started
     infeasible and spent up to 300 iterations restoring it (paper benchmark: 18–33 such solves).

@@ -128,9 +128,10 @@ def test_generated_grasps_keep_the_self_clearance(hand, box_pair):
 
 def test_plan_keeps_the_self_clearance_and_verifies(hand, box_plan):
     """OPT1 and OPT2 steps all keep the clearance (sphere model, every pair); verify's self-collision
-    rows pass (the certified planner's box_rotate plan stalls 53 mm short since a sliding finger drags
-    the box: a partial plan, judged the same)."""
-    assert box_plan.status in ("converged", "stalled"), box_plan.status_detail
+    rows pass (the certified planner's box_rotate plan ends short: it stalled 53 mm short since a sliding
+    finger drags the box; since OPT1's 16-plane local sets, 2026-12-07, its contacts are within ζ with the
+    box 11.9 mm / 22.3° from the desired pose: a partial plan, judged the same)."""
+    assert box_plan.status in ("converged", "stalled", "pose_not_reached"), box_plan.status_detail
     assert {s.kind for s in box_plan.steps} >= {"gait", "repose"}
     assert min(_all_pairs_min(hand, s.q) for s in box_plan.steps) >= SELF_CLEARANCE - TOL
     report = verify(box_plan, hand, box_plan_obj(box_plan))
