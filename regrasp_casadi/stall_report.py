@@ -9,6 +9,8 @@ than ζ, from checks independent of the NLPs at the plan's last grasp, for the p
 * **Out of reach**: the finger's tip cannot be put on its goal at the current object pose within the
   joint limits (damped least-squares IK, `tip_ik`, collisions ignored), or only with one of its other
   collision spheres in the object (exact distance): the object must move first.
+* **Through another finger**: reached, the finger's collision spheres overlap another finger's (or the
+  palm's), the others where they are: that finger, or the object, must move first.
 * **No touch-down there**: reached, the finger could not lift off its goal contact in that posture
   the way a gait's path does (`trajectory.lift_problem`), so no gait can put it down there either
   (measured: bowl seed 9's desired grasp before `grasp_gen`'s lift-off rule, the ring on the floor at
@@ -96,6 +98,7 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
             if depth < 0.0:
                 why.append(f"at this object pose its tip reaches the goal only with a link "
                            f"{-depth * 1e3:.1f} mm in the object")
+            why += _through_others(hand, q_reach, finger)
             motion = motion or motion_context(hand, obj)
             lift = lift_problem(motion, q_reach, T_palm_object, finger)
             if lift:
@@ -107,6 +110,26 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
                            f"surface that near is more than {gain * 1e3:.1f} mm nearer its goal")
         parts.append(f"{finger} {contact_error[r] * 1e3:.1f} mm" + (f" ({'; '.join(why)})" if why else ""))
     return "; not at their goals: " + " | ".join(parts) if parts else ""
+
+
+def _through_others(hand: Hand, q_reach: NDArray, finger: str) -> list[str]:
+    """["at this object pose its tip reaches the goal only through the <other> finger (...)"] when the
+    finger's collision spheres overlap another finger's or the palm's at `q_reach` (n,) rad (its reach
+    posture, the other fingers where they are), else []: the other finger, or the object's pose, must
+    move first (measured: the generated sphere pair of seed 19, SD, stalled with the middle 10.2 mm
+    from its goal, which it reached only through the index, 12.5 mm deep)."""
+    pairs = hand.self_collision_pairs(finger)
+    if not pairs:
+        return []
+    gaps = hand.self_collision_distances(q_reach, pairs)
+    k = int(np.argmin(gaps))
+    if gaps[k] >= 0.0:
+        return []
+    a, b = (hand.spheres[i] for i in pairs[k])
+    other = b.finger if a.finger == finger else a.finger
+    name = "palm" if other is None else f"{other} finger"
+    return [f"at this object pose its tip reaches the goal only through the {name} (its links overlap "
+            f"{-float(gaps[k]) * 1e3:.1f} mm)"]
 
 
 def _best_gain(obj: ObjectModel, tip_object: NDArray, goal_tip_object: NDArray, eta: float) -> float:

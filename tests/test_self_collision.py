@@ -22,6 +22,7 @@ from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner import PlannerOptions, plan_regrasp
 from regrasp_casadi.self_collision import touching_pairs
+from regrasp_casadi.stall_report import stalled_fingers
 from regrasp_casadi.verify import verify
 
 TOL = 1e-5  # the planner's slack on an exact self-clearance test, m
@@ -266,3 +267,19 @@ def test_the_floor_does_not_ratchet_down_by_the_solver_tolerance(hand):
     far_above = SelfCollisionConstraint(hand, probe.pairs, probe.function, float(v[j]) + 0.01)
     assert far_above.floor(q)[j] == pytest.approx(v[j] + HOLD_TOL, abs=1e-15)
     assert far_above.holds(q, far_above.floor(q))
+
+
+def test_stall_report_names_the_finger_a_goal_is_reached_through(hand, box_pair):
+    """A goal only reachable through another finger is reported so; a goal reachable clear of the others
+    (the finger's own tip) is not."""
+    obj, g0, _ = box_pair
+    i, m = hand.fingers.index("index"), hand.fingers.index("middle")
+    T = g0.T_palm_object
+    goals = g0.tip_centers_object.copy()
+    error = np.zeros(len(hand.fingers))
+    error[i] = 0.05  # the index "stalled"
+    goals[i] = goals[m]  # its goal: the middle tip's centre
+    text = stalled_fingers(hand, obj, g0.q, T, goals, error, 0.006)
+    assert "only through the middle finger" in text, text
+    own = stalled_fingers(hand, obj, g0.q, T, g0.tip_centers_object, error, 0.006)
+    assert own.startswith("; not at their goals: index 50.0 mm") and "through" not in own, own
