@@ -117,7 +117,7 @@ def _through_others(hand: Hand, q_reach: NDArray, finger: str) -> list[str]:
     finger's collision spheres overlap another finger's or the palm's at `q_reach` (n,) rad (its reach
     posture, the other fingers where they are), else []: the other finger, or the object's pose, must
     move first (measured: the generated sphere pair of seed 19, SD, stalled with the middle 10.2 mm
-    from its goal, which it reached only through the index, 12.5 mm deep)."""
+    from its goal, which it reached only through the index, 13.0 mm deep)."""
     pairs = hand.self_collision_pairs(finger)
     if not pairs:
         return []
