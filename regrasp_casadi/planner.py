@@ -33,7 +33,7 @@ from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions, input_problem
 from regrasp_casadi.reposture import reposture_round
 from regrasp_casadi.stability import holding_quality, torque_reference
-from regrasp_casadi.stall_report import stalled_fingers
+from regrasp_casadi.stall_report import reached_through_others, stalled_fingers
 from regrasp_casadi.surface_route import gait_target
 from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories, motion_context, step_path
 
@@ -462,7 +462,10 @@ def _repose(run: _Run, escape: bool) -> None:
     """The iteration's reposing (`_Run.repose`); a stall escape refused for the whole way to the desired
     pose is asked again for part of it (`_REGAIT_REACH`), as `_regait` does. With method "sd", an escape
     that brings the object less than `PlannerOptions.sd_escape_gain` closer to the desired pose is
-    followed by a reposing towards the SVD target (the goal contacts brought to the tips)."""
+    followed by a reposing towards the SVD target (the goal contacts brought to the tips); so is any
+    escape after which a finger reaches its goal only through another finger
+    (`stall_report.reached_through_others`): the generated sphere pair of seed 19 (SD) stalled with the
+    middle held off its goal by the index while the escapes turned the object about 0.5° at a time."""
     n_steps, gain = len(run.steps), run.options.sd_escape_gain
     fallback = escape and run.options.method == "sd" and gain is not None
     before = pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj) if fallback else 0.0
@@ -471,6 +474,10 @@ def _repose(run: _Run, escape: bool) -> None:
         if len(run.steps) > n_steps:
             break
     if fallback and before - pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj) < gain:
+        run.repose(escape=False, contacts_target=True)
+    if escape and run.options.method == "sd" and reached_through_others(
+            run.hand, run.q, run.T_palm_object, run.goal_tips, run.steps[-1].contact_error, run.options.zeta,
+            run.q_goal):
         run.repose(escape=False, contacts_target=True)
 
 

@@ -40,7 +40,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
 
-__all__ = ["stalled_fingers", "REACH_TOL", "OFF_SURFACE_GAIN"]
+__all__ = ["stalled_fingers", "reached_through_others", "REACH_TOL", "OFF_SURFACE_GAIN"]
 
 REACH_TOL = 1e-3
 """A finger whose IK gets its tip centre no closer than this to its goal cannot reach it, m."""
@@ -110,6 +110,22 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
                            f"surface that near is more than {gain * 1e3:.1f} mm nearer its goal")
         parts.append(f"{finger} {contact_error[r] * 1e3:.1f} mm" + (f" ({'; '.join(why)})" if why else ""))
     return "; not at their goals: " + " | ".join(parts) if parts else ""
+
+
+def reached_through_others(hand: Hand, q: NDArray, T_palm_object: NDArray, goal_tips_object: NDArray,
+                           contact_error: NDArray, zeta: float, q_goal: NDArray | None = None) -> bool:
+    """Whether a finger farther than `zeta` (m) from its goal reaches it at this object pose (`q` (n,) rad,
+    `T_palm_object` (4, 4)) only through another finger or the palm (`_through_others`, at its
+    `tip_ik.finger_reach_ik` posture; `goal_tips_object` (m, 3), object frame, m)."""
+    R, t = np.asarray(T_palm_object, float)[:3, :3], np.asarray(T_palm_object, float)[:3, 3]
+    for r, finger in enumerate(hand.fingers):
+        if contact_error[r] <= zeta:
+            continue
+        q_reach, e = finger_reach_ik(hand, np.asarray(q, float), finger, R @ goal_tips_object[r] + t,
+                                     [q_goal], tol=REACH_TOL)
+        if float(np.linalg.norm(e)) <= REACH_TOL and _through_others(hand, q_reach, finger):
+            return True
+    return False
 
 
 def _through_others(hand: Hand, q_reach: NDArray, finger: str) -> list[str]:

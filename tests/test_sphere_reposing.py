@@ -133,3 +133,20 @@ def test_the_paper_planner_reaches_the_desired_pose_on_the_sphere(problem):
     T_end = np.asarray(plan.steps[-1].T_palm_object, float)
     assert _angle(T_end[:3, :3], T_goal[:3, :3]) < np.radians(2.0)
     assert np.linalg.norm(T_end[:3, 3] - T_goal[:3, 3]) < 2e-3
+
+
+@pytest.mark.slow
+def test_an_sd_escape_blocked_by_another_finger_reposes_towards_the_desired_pose(monkeypatch):
+    """Generated sphere pair 19, method SD: at the pose where the escapes stall, the middle reaches its
+    goal only through the index. Without the SVD-target reposing that then follows an escape
+    (`planner._repose`), the plan stalls 10.2 mm short; with it, it converges and verifies."""
+    from regrasp_casadi import planner
+
+    pair = RegraspProblem.load(SPHERE_PAIR.with_name("sphere_pair_seed19.yaml"))
+    options = PlannerOptions(method="sd", stability="none")
+    plan = plan_regrasp(pair.grasp0, pair.grasp_goal, options=options)
+    assert plan.status == "converged", plan.status_detail
+    assert verify(plan).ok
+    monkeypatch.setattr(planner, "reached_through_others", lambda *args, **kwargs: False)
+    stalled = plan_regrasp(pair.grasp0, pair.grasp_goal, options=options)
+    assert stalled.status == "stalled" and "only through the index finger" in stalled.status_detail
