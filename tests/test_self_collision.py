@@ -22,7 +22,7 @@ from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner import PlannerOptions, plan_regrasp
 from regrasp_casadi.self_collision import touching_pairs
-from regrasp_casadi.stall_report import stalled_fingers
+from regrasp_casadi.stall_report import reached_through_others, stalled_fingers
 from regrasp_casadi.verify import verify
 
 TOL = 1e-5  # the planner's slack on an exact self-clearance test, m
@@ -281,5 +281,7 @@ def test_stall_report_names_the_finger_a_goal_is_reached_through(hand, box_pair)
     goals[i] = goals[m]  # its goal: the middle tip's centre
     text = stalled_fingers(hand, obj, g0.q, T, goals, error, 0.006)
     assert "only through the middle finger" in text, text
+    assert reached_through_others(hand, g0.q, T, goals, error, 0.006)  # the planner's test of the same
     own = stalled_fingers(hand, obj, g0.q, T, g0.tip_centers_object, error, 0.006)
     assert own.startswith("; not at their goals: index 50.0 mm") and "through" not in own, own
+    assert not reached_through_others(hand, g0.q, T, g0.tip_centers_object, error, 0.006)
