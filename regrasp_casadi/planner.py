@@ -485,8 +485,11 @@ def _regait(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
     """After final moves that stopped short of the desired pose (`outcome`: the next would take a
     contact beyond ζ, or was refused), one reposing towards it (`_Run.repose`, accepted when it brings
     the object closer, wherever the contacts go); True when it was accepted and iterations remain, so
-    that gait rounds bring the contacts back (`PlannerOptions.final_regait`)."""
+    that gait rounds bring the contacts back (`PlannerOptions.final_regait`). Not when the object is
+    within the pose tolerance already (the plan is converged; re-gaiting might end it elsewhere)."""
     if not (options.final_regait and outcome.stop in _REGAIT_STOPS and run.iterations < options.max_iters):
+        return False
+    if decide_status(run, options, outcome)[0] == "converged":
         return False
     n_steps = len(run.steps)
     for reach in _REGAIT_REACH:  # a shorter reposing where a longer one is refused

@@ -10,11 +10,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from regrasp_casadi.final_moves import pose_distance, run_final_moves
+from regrasp_casadi.final_moves import FinalMoves, decide_status, pose_distance, run_final_moves
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.grasp_metrics import pose_error
 from regrasp_casadi.in_grasp import InGraspOptions
-from regrasp_casadi.planner import PlannerOptions, plan_regrasp
+from regrasp_casadi.planner import PlannerOptions, _regait, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.transforms import interpolate_pose, make_T, rot_axis_angle, transform_points
 from regrasp_casadi.verify import verify
@@ -217,3 +217,55 @@ def test_an_escape_reposing_is_accepted_only_towards_the_desired_pose(box_shift,
     run.repose(escape=True)
     assert len(run.steps) == (2 if accepted else 1)
     assert accepted or "would not bring the object closer" in run.failures[-1]
+
+
+class _FixedOPT2:
+    """Lands the object at `T_result` whatever it is asked."""
+
+    options = InGraspOptions()
+
+    def __init__(self, tips_object, T_result):
+        self.tips_object, self.T_result, self.calls = tips_object, T_result, 0
+
+    def solve(self, q, T_palm_object, p_object_tips, *, T_target):
+        self.calls += 1
+        q = transform_points(self.T_result, self.tips_object).ravel()
+        return _Result(q=q, T_palm_object=self.T_result)
+
+
+def _off_goal(position_mm: float, rotation_deg: float) -> np.ndarray:
+    """A pose `position_mm` along x and `rotation_deg` about z from T_GOAL."""
+    R = rot_axis_angle([0.0, 0.0, 1.0], np.radians(rotation_deg))
+    return T_GOAL @ make_T(R, [position_mm * 1e-3, 0.0, 0.0])
+
+
+@pytest.mark.parametrize("start_mm, accepted", [(1.9, False), (2.1, True)])
+def test_a_move_that_leaves_the_pose_tolerance_is_not_accepted(start_mm, accepted):
+    """A move to 0.5 mm / 2.5° lowers the pose distance (radius 5 cm: 1.9 mm / 1.9° is 3.56 mm, 0.5 mm /
+    2.5° is 2.68 mm) but leaves the 2 mm / 2° tolerance: refused from within it, taken from outside."""
+    options = PlannerOptions()
+    T_start, T_result = _off_goal(start_mm, 1.9), _off_goal(0.5, 2.5)
+    run = _Run(T_start, T_GOAL)
+    run.svd_nlp = _FixedOPT2(run.tips, T_result)
+    assert pose_distance(T_result, T_GOAL, run.obj) < pose_distance(T_start, T_GOAL, run.obj)
+    out = run_final_moves(run, options)
+    if accepted:
+        assert len(run.steps) >= 1 and np.allclose(run.T_palm_object, T_result)
+        assert decide_status(run, options, out)[0] == "pose_not_reached"
+    else:
+        assert out.stop == "in_tolerance" and out.moves == 0 and run.steps == [] and out.note
+        assert run.svd_nlp.calls >= 2  # retried with a shorter move, then refused
+        assert decide_status(run, options, out)[0] == "converged"
+
+
+@pytest.mark.parametrize("position_mm, regaits", [(1.0, False), (3.0, True)])
+def test_no_regait_from_within_the_pose_tolerance(position_mm, regaits):
+    """`planner._regait` (a reposing towards the desired pose after refused final moves) is not tried
+    when the object is within the pose tolerance: the plan is converged there."""
+    run = _Run(_off_goal(position_mm, 1.0), T_GOAL)
+    asked = []
+    run.repose = lambda **kw: asked.append(kw)  # a reposing that is always refused (no step)
+    run.steps, run.errors = [SimpleNamespace(contact_error=np.zeros(3))], []
+    out = FinalMoves("rejected", 0, (pose_distance(run.T_palm_object, T_GOAL, run.obj),))
+    assert not _regait(run, PlannerOptions(), out)
+    assert bool(asked) is regaits
