@@ -31,7 +31,7 @@ from regrasp_casadi.long_gait import long_gait
 from regrasp_casadi.nlp_cache import NLPCache, clear_built_solvers
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions, input_problem
-from regrasp_casadi.reposture import reposture_round
+from regrasp_casadi.reposture import posture_report, reposture_round
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.stall_report import reached_through_others, stalled_fingers
 from regrasp_casadi.surface_route import gait_target
@@ -530,12 +530,15 @@ def _finish(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: 
             outcome: FinalMoves | None = None) -> Plan:
     """The plan of a run whose iterations ended: the final moves (`outcome`, when they have run) if the
     contacts are reached, then "converged", "pose_not_reached" or "iteration_limit"
-    (`final_moves.decide_status`)."""
+    (`final_moves.decide_status`; "pose_not_reached" names the fingers bent unlike the goal grasp,
+    `reposture.posture_report`)."""
     if outcome is None:
         outcome = FinalMoves("not_run", 0, ())
         if options.final_move and run.largest_error() <= options.zeta:
             outcome = run_final_moves(run, options)
     status, detail = decide_status(run, options, outcome)
+    if status == "pose_not_reached":
+        detail += posture_report(run)
     return _make_plan(grasp0, grasp_goal, options, t_start, run, status, detail)
 
 

@@ -40,7 +40,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
 
-__all__ = ["stalled_fingers", "reached_through_others", "REACH_TOL", "OFF_SURFACE_GAIN"]
+__all__ = ["stalled_fingers", "reached_through_others", "through_others", "REACH_TOL", "OFF_SURFACE_GAIN"]
 
 REACH_TOL = 1e-3
 """A finger whose IK gets its tip centre no closer than this to its goal cannot reach it, m."""
@@ -98,7 +98,7 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
             if depth < 0.0:
                 why.append(f"at this object pose its tip reaches the goal only with a link "
                            f"{-depth * 1e3:.1f} mm in the object")
-            why += _through_others(hand, q_reach, finger)
+            why += through_others(hand, q_reach, finger)
             motion = motion or motion_context(hand, obj)
             lift = lift_problem(motion, q_reach, T_palm_object, finger)
             if lift:
@@ -115,7 +115,7 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
 def reached_through_others(hand: Hand, q: NDArray, T_palm_object: NDArray, goal_tips_object: NDArray,
                            contact_error: NDArray, zeta: float, q_goal: NDArray | None = None) -> bool:
     """Whether a finger farther than `zeta` (m) from its goal reaches it at this object pose (`q` (n,) rad,
-    `T_palm_object` (4, 4)) only through another finger or the palm (`_through_others`, at its
+    `T_palm_object` (4, 4)) only through another finger or the palm (`through_others`, at its
     `tip_ik.finger_reach_ik` posture; `goal_tips_object` (m, 3), object frame, m)."""
     R, t = np.asarray(T_palm_object, float)[:3, :3], np.asarray(T_palm_object, float)[:3, 3]
     for r, finger in enumerate(hand.fingers):
@@ -123,13 +123,14 @@ def reached_through_others(hand: Hand, q: NDArray, T_palm_object: NDArray, goal_
             continue
         q_reach, e = finger_reach_ik(hand, np.asarray(q, float), finger, R @ goal_tips_object[r] + t,
                                      [q_goal], tol=REACH_TOL)
-        if float(np.linalg.norm(e)) <= REACH_TOL and _through_others(hand, q_reach, finger):
+        if float(np.linalg.norm(e)) <= REACH_TOL and through_others(hand, q_reach, finger):
             return True
     return False
 
 
-def _through_others(hand: Hand, q_reach: NDArray, finger: str) -> list[str]:
-    """["at this object pose its tip reaches the goal only through the <other> finger (...)"] when the
+def through_others(hand: Hand, q_reach: NDArray, finger: str,
+                   reaches: str = "at this object pose its tip reaches the goal") -> list[str]:
+    """["<reaches> only through the <other> finger (...)"] when the
     finger's collision spheres overlap another finger's or the palm's at `q_reach` (n,) rad (its reach
     posture, the other fingers where they are), else []: the other finger, or the object's pose, must
     move first (measured: the generated sphere pair of seed 19, SD, stalled with the middle 10.2 mm
@@ -144,7 +145,7 @@ def _through_others(hand: Hand, q_reach: NDArray, finger: str) -> list[str]:
     a, b = (hand.spheres[i] for i in pairs[k])
     other = b.finger if a.finger == finger else a.finger
     name = "palm" if other is None else f"{other} finger"
-    return [f"at this object pose its tip reaches the goal only through the {name} (its links overlap "
+    return [f"{reaches} only through the {name} (its collision spheres overlap "
             f"{-float(gaps[k]) * 1e3:.1f} mm)"]
 
 

@@ -10,11 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+import yourdfpy
 
 from regrasp_casadi.final_moves import pose_distance, run_final_moves
 from regrasp_casadi.planner import NLPCache, PlannerOptions, _Run, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
-from regrasp_casadi.reposture import POSTURE_GAIN, POSTURE_TOL, reposture_round
+from regrasp_casadi.reposture import POSTURE_GAIN, POSTURE_TOL, posture_report, reposture_round
+from regrasp_casadi.stall_report import REACH_TOL
+from regrasp_casadi.tip_ik import finger_reach_ik
 from regrasp_casadi.verify import verify
 
 BENT = Path(__file__).resolve().parent / "data" / "mug_ring_bent_at_goal.yaml"
@@ -82,3 +85,51 @@ def test_the_stalled_plan_converges_with_reposture_and_not_without(problem):
     assert plan.status == "converged", plan.status_detail
     assert verify(plan, problem.hand, problem.obj).ok
     assert any(s.kind == "gait" for s in plan.steps)
+
+
+def _ring_middle_gap(hand, q) -> float:
+    """The least surface distance of the ring's and the middle's collision spheres at q, m, their centres
+    placed by yourdfpy's forward kinematics."""
+    ref = yourdfpy.URDF.load(str(hand.urdf_path), load_meshes=False, build_collision_scene_graph=False)
+    ref.update_cfg(np.asarray(q, float))
+
+    def centres(finger):
+        spheres = [s for s in hand.spheres if s.finger == finger]
+        T = [ref.get_transform(s.link, ref.base_link) for s in spheres]
+        return np.array([t[:3, :3] @ s.center_link + t[:3, 3] for t, s in zip(T, spheres, strict=True)]), \
+            np.array([s.radius for s in spheres])
+
+    (a, ra), (b, rb) = centres("ring"), centres("middle")
+    return float(np.min(np.linalg.norm(a[:, None] - b[None], axis=2) - ra[:, None] - rb[None]))
+
+
+@pytest.mark.reference_data
+def test_the_report_names_the_bent_fingers_and_the_finger_one_goes_through(problem, reference_dir):
+    """A plan that ends short of the pose names its bent fingers (`posture_report`): the ring, in the goal's
+    posture, only through the middle, its spheres overlapping the middle's by the amount the report gives
+    (yourdfpy FK). The vendor link meshes (python-fcl) do not intersect there: the claim is the sphere
+    model's, which the planner plans with."""
+    pytest.importorskip("fcl", reason="python-fcl is not installed (extra 'fcl')")
+    from regrasp_casadi.link_meshes import LinkMeshes
+
+    hand, goal = problem.hand, problem.grasp_goal
+    run = _Run(problem.grasp0, goal, PlannerOptions(method="svd", stability="none"), NLPCache(max_size=8))
+    text = posture_report(run)
+    bent = [f for f in hand.fingers if _posture_gap(problem, run.q, f) > POSTURE_TOL]
+    named = [part.split()[0] for part in text.removeprefix("; bent unlike the goal grasp: ").split(" | ")]
+    assert "ring" in bent and named == bent, text
+
+    T = run.T_palm_object
+    q_start = run.q.copy()
+    ring = hand.finger_joints["ring"]
+    q_start[ring] = np.asarray(goal.q)[ring]
+    r = hand.fingers.index("ring")
+    q_ring, e = finger_reach_ik(hand, q_start, "ring", T[:3, :3] @ run.goal_tips[r] + T[:3, 3], tol=REACH_TOL)
+    assert np.linalg.norm(e) <= REACH_TOL
+    overlap = -_ring_middle_gap(hand, q_ring)
+    assert overlap > 0.0
+    gap = _posture_gap(problem, run.q, "ring")
+    assert (f"ring {gap:.2f} rad (in the goal's posture its tip reaches the goal only through the middle "
+            f"finger (its collision spheres overlap {overlap * 1e3:.1f} mm))") in text
+    meshes = LinkMeshes(reference_dir / "allegro_right" / "allegro_hand_right.urdf", hand)
+    assert not meshes.intersections(q_ring)
