@@ -52,6 +52,7 @@ from regrasp_casadi.stability import (
     sliding_normal,
     torque_reference,
 )
+from regrasp_casadi.surface_route import surface_targets
 
 if TYPE_CHECKING:
     from regrasp_casadi.hand import Hand
@@ -228,26 +229,8 @@ class Holding:
 
     def surface_targets(self, tip: NDArray, goal_tip: NDArray, distance: float, n_dirs: int
                         ) -> tuple[NDArray, NDArray, NDArray]:
-        """Tip-sphere centres on the surface about `distance` from `tip` (3,), object frame, m: the first
-        towards `goal_tip` (3,) (at most as far as it), the others at `n_dirs` − 1 more directions of the
-        tangent plane. Returns (tips, contacts, outward normals), each (n_dirs, 3), object frame."""
-        r = float(self.hand.tip_radius)
-        (c0,), _ = self.obj.closest_points(np.asarray(tip, float).reshape(1, 3))
-        n0 = (tip - c0) / max(float(np.linalg.norm(tip - c0)), 1e-12)
-        to_goal = np.asarray(goal_tip, float) - tip
-        u = to_goal - (to_goal @ n0) * n0
-        if np.linalg.norm(u) < 1e-9:
-            u = np.cross(n0, [1.0, 0.0, 0.0] if abs(n0[0]) < 0.9 else [0.0, 1.0, 0.0])
-        u /= np.linalg.norm(u)
-        v = np.cross(n0, u)
-        theta = 2 * np.pi * np.arange(n_dirs) / n_dirs
-        d = np.full(n_dirs, float(distance))
-        d[0] = min(d[0], float(np.linalg.norm(to_goal)))
-        moved = tip + d[:, None] * (np.cos(theta)[:, None] * u + np.sin(theta)[:, None] * v)
-        contacts, sd = self.obj.closest_points(moved)
-        away = (moved - contacts) * np.sign(np.where(sd == 0, 1.0, sd))[:, None]
-        normals = away / np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-12)
-        return contacts + r * normals, np.asarray(contacts, float), normals
+        """`surface_route.surface_targets` on this object with this hand's tip radius."""
+        return surface_targets(self.obj, float(self.hand.tip_radius), tip, goal_tip, distance, n_dirs)
 
     # ------------------------------------------------------------------------------------ internals
     def contacts(self, q: NDArray, T_palm_object: NDArray) -> tuple[NDArray, NDArray]:

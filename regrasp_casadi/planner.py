@@ -28,6 +28,7 @@ from regrasp_casadi.holding import Holding
 from regrasp_casadi.in_grasp import InGraspNLP, svd_target, trust_region
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.long_gait import long_gait
+from regrasp_casadi.make_way import make_way
 from regrasp_casadi.nlp_cache import NLPCache, clear_built_solvers
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions, input_problem
@@ -257,7 +258,8 @@ class _Run:
         """One finger gait (OPT1) for each finger of the gait pattern not yet at its goal, in the
         pattern's order or the stability order; a rejected gait leaves the finger where it is; once the
         plan has made no progress for `stall_escape` iterations, a finger still beyond ζ also tries
-        `long_gait`. With stability on, only certified moves (`certified_round.certified_round`)."""
+        `long_gait`, then `make_way`. With stability on, only certified moves
+        (`certified_round.certified_round`)."""
         if self.holding is not None:
             certified_round(self)
             return
@@ -281,7 +283,8 @@ class _Run:
                     accept_gait(self, finger, res)  # unless its path fails its checks
             o = self.options
             if self.stalled >= o.stall_escape and self.steps[-1].contact_error[r] > o.zeta:
-                long_gait(self, finger)  # from its IK at the goal: out of OPT1's local minimum
+                # from its IK at the goal: out of OPT1's local minimum; else past a finger in its way
+                long_gait(self, finger) or make_way(self, finger)
 
     def _most_stable_gait(self, todo: list[str]) -> str:
         """Remove and return the finger of `todo` whose lift leaves the best-held grasp."""

@@ -40,7 +40,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand
     from regrasp_casadi.objects import ObjectModel
 
-__all__ = ["stalled_fingers", "reached_through_others", "through_others", "REACH_TOL", "OFF_SURFACE_GAIN"]
+__all__ = ["stalled_fingers", "reached_through_others", "through_others", "blocker", "REACH_TOL",
+           "OFF_SURFACE_GAIN"]
 
 REACH_TOL = 1e-3
 """A finger whose IK gets its tip centre no closer than this to its goal cannot reach it, m."""
@@ -130,23 +131,30 @@ def reached_through_others(hand: Hand, q: NDArray, T_palm_object: NDArray, goal_
 
 def through_others(hand: Hand, q_reach: NDArray, finger: str,
                    reaches: str = "at this object pose its tip reaches the goal") -> list[str]:
-    """["<reaches> only through the <other> finger (...)"] when the
-    finger's collision spheres overlap another finger's or the palm's at `q_reach` (n,) rad (its reach
-    posture, the other fingers where they are), else []: the other finger, or the object's pose, must
-    move first (measured: the generated sphere pair of seed 19, SD, stalled with the middle 10.2 mm
-    from its goal, which it reached only through the index, 13.0 mm deep)."""
+    """["<reaches> only through the <other> finger (...)"] when the finger's collision spheres overlap
+    another finger's or the palm's at `q_reach` (n,) rad (its reach posture, the other fingers where they
+    are), else []: the other finger, or the object's pose, must move first (measured: the generated
+    sphere pair of seed 19, SD, stalled with the middle 10.2 mm from its goal, which it reached only
+    through the index, 13.0 mm deep)."""
+    hit = blocker(hand, q_reach, finger)
+    if hit is None:
+        return []
+    name = "palm" if hit[0] is None else f"{hit[0]} finger"
+    return [f"{reaches} only through the {name} (its collision spheres overlap {hit[1] * 1e3:.1f} mm)"]
+
+
+def blocker(hand: Hand, q: NDArray, finger: str) -> tuple[str | None, float] | None:
+    """(the other finger, None for the palm; the overlap, m > 0) of the deepest overlap of `finger`'s
+    collision spheres with another body's at `q` (n,) rad, or None when they overlap none."""
     pairs = hand.self_collision_pairs(finger)
     if not pairs:
-        return []
-    gaps = hand.self_collision_distances(q_reach, pairs)
+        return None
+    gaps = hand.self_collision_distances(q, pairs)
     k = int(np.argmin(gaps))
     if gaps[k] >= 0.0:
-        return []
+        return None
     a, b = (hand.spheres[i] for i in pairs[k])
-    other = b.finger if a.finger == finger else a.finger
-    name = "palm" if other is None else f"{other} finger"
-    return [f"{reaches} only through the {name} (its collision spheres overlap "
-            f"{-float(gaps[k]) * 1e3:.1f} mm)"]
+    return (b.finger if a.finger == finger else a.finger), -float(gaps[k])
 
 
 def _best_gain(obj: ObjectModel, tip_object: NDArray, goal_tip_object: NDArray, eta: float) -> float:

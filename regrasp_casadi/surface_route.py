@@ -47,7 +47,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.planner import _Run
 
 __all__ = ["FACING", "MAX_EDGE", "SurfaceGraph", "SurfaceRoutes", "gait_target", "line_blocked",
-           "line_clearance", "surface_graph"]
+           "line_clearance", "surface_graph", "surface_targets"]
 
 MAX_EDGE = 0.005
 """Longest edge of the subdivided mesh the routes run on, m (η / 2)."""
@@ -193,3 +193,28 @@ def gait_target(run: _Run, r: int) -> NDArray[np.float64]:
     target = run.routes.target(r, contact, normal, run.options.finger_gait.eta, rho)
     return goal if target is None else target
 
+
+
+def surface_targets(obj: ObjectModel, tip_radius: float, tip: NDArray, goal_tip: NDArray, distance: float,
+                    n_dirs: int) -> tuple[NDArray, NDArray, NDArray]:
+    """Tip-sphere centres (radius `tip_radius`, m) on the surface about `distance` (m) from `tip` (3,),
+    object frame: the first towards `goal_tip` (3,) (at most as far as it), the others at `n_dirs` − 1
+    more directions of the tangent plane. Returns (tips, contacts, outward normals), each (n_dirs, 3),
+    object frame."""
+    r = float(tip_radius)
+    (c0,), _ = obj.closest_points(np.asarray(tip, float).reshape(1, 3))
+    n0 = (tip - c0) / max(float(np.linalg.norm(tip - c0)), 1e-12)
+    to_goal = np.asarray(goal_tip, float) - tip
+    u = to_goal - (to_goal @ n0) * n0
+    if np.linalg.norm(u) < 1e-9:
+        u = np.cross(n0, [1.0, 0.0, 0.0] if abs(n0[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n0, u)
+    theta = 2 * np.pi * np.arange(n_dirs) / n_dirs
+    d = np.full(n_dirs, float(distance))
+    d[0] = min(d[0], float(np.linalg.norm(to_goal)))
+    moved = tip + d[:, None] * (np.cos(theta)[:, None] * u + np.sin(theta)[:, None] * v)
+    contacts, sd = obj.closest_points(moved)
+    away = (moved - contacts) * np.sign(np.where(sd == 0, 1.0, sd))[:, None]
+    normals = away / np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-12)
+    return contacts + r * normals, np.asarray(contacts, float), normals
