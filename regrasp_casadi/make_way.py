@@ -12,7 +12,8 @@ goal contact, where it is clearest of the stalled finger's reach posture (at lea
 then the stalled finger's `long_gait`. Both are gaits like any other: their exact checks and their
 lift-off / transit / touch-down paths (`certified_round.accept_gait`). The neighbour's contact stays
 within ζ of its goal, so the plan can still converge with it there; the gait rounds bring it back
-towards its goal as far as the fingers' clearance lets them.
+towards its goal as far as the fingers' clearance lets them. `move_aside` alone also serves the
+re-posture gaits (`reposture`): a finger whose goal posture runs through a neighbour.
 
     >>> moved = make_way(run, "ring")        # run: the planner's `_Run`, stalled, without stability
 """
@@ -32,7 +33,7 @@ from regrasp_casadi.tip_ik import finger_reach_ik
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.planner import _Run
 
-__all__ = ["WAY_DISTANCES", "WAY_DIRECTIONS", "make_way"]
+__all__ = ["WAY_DISTANCES", "WAY_DIRECTIONS", "make_way", "move_aside"]
 
 WAY_DISTANCES = (0.002, 0.004)
 """How far the neighbour's contact is moved, m (tried together: the clearest point is taken)."""
@@ -43,12 +44,21 @@ WAY_DIRECTIONS = 8
 def make_way(run: _Run, finger: str) -> bool:
     """Move the finger that `finger`'s reach posture at its goal runs through aside, then `long_gait`
     (see the module docstring); True when `finger` took a gait. Not tried (False) when its goal is out
-    of reach at this object pose, its reach posture runs through nothing or only the palm, or no point
-    near the neighbour's contact within ζ of its goal clears the reach posture."""
-    r, hand, T = run.fingers.index(finger), run.hand, run.T_palm_object
-    q_reach, e = finger_reach_ik(hand, run.q, finger, T[:3, :3] @ run.goal_tips[r] + T[:3, 3], [run.q_goal],
-                                 tol=REACH_TOL)
-    hit = blocker(hand, q_reach, finger) if float(np.linalg.norm(e)) <= REACH_TOL else None
+    of reach at this object pose, or `move_aside` moves nothing."""
+    r, T = run.fingers.index(finger), run.T_palm_object
+    q_reach, e = finger_reach_ik(run.hand, run.q, finger, T[:3, :3] @ run.goal_tips[r] + T[:3, 3],
+                                 [run.q_goal], tol=REACH_TOL)
+    if float(np.linalg.norm(e)) > REACH_TOL:
+        return False
+    return move_aside(run, finger, q_reach) and long_gait(run, finger)
+
+
+def move_aside(run: _Run, finger: str, q_reach: np.ndarray) -> bool:
+    """The gait that moves the finger whose collision spheres `finger`'s at `q_reach` (n,) rad overlap
+    most (`stall_report.blocker`) to the surface point around its contact, within ζ of its goal, where it
+    is clearest of them (at least the self-clearance; see the module docstring); True when it was taken.
+    Nothing is moved when `q_reach` overlaps no other finger (or only the palm) or no point clears it."""
+    hit = blocker(run.hand, q_reach, finger)
     if hit is None or hit[0] is None:
         return False
     other = hit[0]
@@ -56,7 +66,7 @@ def make_way(run: _Run, finger: str) -> bool:
     if way is None:
         return False
     tip, q_init = way
-    res = run.gait_nlps[other].solve(run.q, T, tip, q_init=q_init)
+    res = run.gait_nlps[other].solve(run.q, run.T_palm_object, tip, q_init=q_init)
     run.timing["opt1"] += res.solve_time
     run.solves["opt1"] += res.solves
     if not res.success:
@@ -65,7 +75,7 @@ def make_way(run: _Run, finger: str) -> bool:
     contact, _ = run.obj.closest_points(res.p_object_tip[None])
     if float(np.linalg.norm(contact[0] - run.goal_contacts[b])) > run.options.zeta:
         return False
-    return accept_gait(run, other, res) and long_gait(run, finger)
+    return accept_gait(run, other, res)
 
 
 def _clearest_aside(run: _Run, finger: str, other: str, q_reach: np.ndarray

@@ -12,7 +12,7 @@ import pytest
 import trimesh
 import yourdfpy
 
-from regrasp_casadi.final_moves import pose_distance, run_final_moves
+from regrasp_casadi.final_moves import FinalMoves, pose_distance, run_final_moves
 from regrasp_casadi.planner import NLPCache, PlannerOptions, _Run, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.reposture import POSTURE_GAIN, POSTURE_TOL, posture_report, reposture_round
@@ -133,3 +133,30 @@ def test_the_report_names_the_bent_fingers_and_the_finger_one_goes_through(probl
             f"finger (its collision spheres overlap {overlap * 1e3:.1f} mm))") in text
     meshes = LinkMeshes(reference_dir / "allegro_right" / "allegro_hand_right.urdf", hand)
     assert not meshes.intersections(q_ring)
+
+
+def test_a_jammed_pair_gets_its_postures_back_once_one_moves_aside():
+    """The generated mug pair of seed 9 at its last re-posture round: the ring and the middle each overlap
+    the other in the goal's posture. The ring moves its contact aside, within ζ of its goal
+    (`make_way.move_aside`), and the middle gets the goal's posture; the two stay clear (yourdfpy FK
+    spheres) and on the mug (trimesh)."""
+    problem = RegraspProblem.load(BENT.with_name("mug_ring_middle_jammed.yaml"))
+    hand, goal = problem.hand, problem.grasp_goal
+    options = PlannerOptions(method="svd", stability="none")
+    run = _Run(problem.grasp0, goal, options, NLPCache(max_size=8))
+    text = posture_report(run)
+    assert "middle 0.61 rad (in the goal's posture its tip reaches the goal only through the ring" in text
+    assert "ring 0.96 rad (in the goal's posture its tip reaches the goal only through the middle" in text
+
+    n_steps = len(run.steps)
+    stalled = FinalMoves("small_gain", 5, ())  # the state was saved when the final moves had stopped so
+    assert reposture_round(run, stalled)
+    aside, middle = run.steps[n_steps:n_steps + 2]
+    assert (aside.kind, aside.finger, middle.kind, middle.finger) == ("gait", "ring", "gait", "middle")
+    assert set(np.flatnonzero(aside.q != run.steps[n_steps - 1].q)) <= set(hand.finger_joints["ring"])
+    assert _posture_gap(problem, middle.q, "middle") <= _posture_gap(problem, problem.grasp0.q, "middle") \
+        - POSTURE_GAIN
+    contacts, sd = _exact_contacts(problem, middle.q, middle.T_palm_object)
+    assert np.all(np.linalg.norm(contacts - goal.contacts_object, axis=1) <= options.zeta)
+    assert np.all(np.abs(sd - hand.tip_radius) <= 5e-4)
+    assert _ring_middle_gap(hand, middle.q) >= options.finger_gait.self_clearance - 1e-5
