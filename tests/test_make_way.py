@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-import yourdfpy
+from sphere_gaps import finger_gap
 
 from regrasp_casadi.make_way import make_way
 from regrasp_casadi.planner import NLPCache, PlannerOptions, _Run, plan_regrasp
@@ -24,22 +24,6 @@ from regrasp_casadi.verify import verify
 DATA = Path(__file__).resolve().parent / "data"
 
 
-def _gap(hand, q, finger_a, finger_b) -> float:
-    """The least surface distance of two fingers' collision spheres at q (n,) rad, m, their centres placed
-    by yourdfpy's forward kinematics."""
-    ref = yourdfpy.URDF.load(str(hand.urdf_path), load_meshes=False, build_collision_scene_graph=False)
-    ref.update_cfg(np.asarray(q, float))
-
-    def spheres(finger):
-        chosen = [s for s in hand.spheres if s.finger == finger]
-        T = [ref.get_transform(s.link, ref.base_link) for s in chosen]
-        centres = np.array([t[:3, :3] @ s.center_link + t[:3, 3] for t, s in zip(T, chosen, strict=True)])
-        return centres, np.array([s.radius for s in chosen])
-
-    (a, ra), (b, rb) = spheres(finger_a), spheres(finger_b)
-    return float(np.min(np.linalg.norm(a[:, None] - b[None], axis=2) - ra[:, None] - rb[None]))
-
-
 def test_the_middle_moves_aside_within_zeta_and_clears_the_rings_reach():
     problem = RegraspProblem.load(DATA / "mug_ring_through_the_middle.yaml")
     hand, goal = problem.hand, problem.grasp_goal
@@ -49,7 +33,7 @@ def test_the_middle_moves_aside_within_zeta_and_clears_the_rings_reach():
     ring = hand.fingers.index("ring")
     q_reach, e = finger_reach_ik(hand, run.q, "ring", T[:3, :3] @ run.goal_tips[ring] + T[:3, 3],
                                  [run.q_goal], tol=REACH_TOL)
-    assert np.linalg.norm(e) <= REACH_TOL and _gap(hand, q_reach, "ring", "middle") < 0.0  # the stall
+    assert np.linalg.norm(e) <= REACH_TOL and finger_gap(hand, q_reach, "ring", "middle") < 0.0  # the stall
 
     n_steps = len(run.steps)
     make_way(run, "ring")
@@ -67,7 +51,7 @@ def test_the_middle_moves_aside_within_zeta_and_clears_the_rings_reach():
     assert np.linalg.norm(contact - goal.contacts_object[middle]) <= options.zeta
     q_both = q_reach.copy()
     q_both[hand.finger_joints["middle"]] = step.q[hand.finger_joints["middle"]]
-    assert _gap(hand, q_both, "ring", "middle") >= options.finger_gait.self_clearance
+    assert finger_gap(hand, q_both, "ring", "middle") >= options.finger_gait.self_clearance
 
 
 def test_nothing_moves_for_a_finger_whose_reach_runs_through_no_other():

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-import yourdfpy
+from sphere_gaps import finger_gap
 
 from regrasp_casadi.final_moves import FinalMoves, pose_distance, run_final_moves
 from regrasp_casadi.planner import NLPCache, PlannerOptions, _Run, plan_regrasp
@@ -87,22 +87,6 @@ def test_the_stalled_plan_converges_with_reposture_and_not_without(problem):
     assert any(s.kind == "gait" for s in plan.steps)
 
 
-def _ring_middle_gap(hand, q) -> float:
-    """The least surface distance of the ring's and the middle's collision spheres at q, m, their centres
-    placed by yourdfpy's forward kinematics."""
-    ref = yourdfpy.URDF.load(str(hand.urdf_path), load_meshes=False, build_collision_scene_graph=False)
-    ref.update_cfg(np.asarray(q, float))
-
-    def centres(finger):
-        spheres = [s for s in hand.spheres if s.finger == finger]
-        T = [ref.get_transform(s.link, ref.base_link) for s in spheres]
-        return np.array([t[:3, :3] @ s.center_link + t[:3, 3] for t, s in zip(T, spheres, strict=True)]), \
-            np.array([s.radius for s in spheres])
-
-    (a, ra), (b, rb) = centres("ring"), centres("middle")
-    return float(np.min(np.linalg.norm(a[:, None] - b[None], axis=2) - ra[:, None] - rb[None]))
-
-
 @pytest.mark.reference_data
 def test_the_report_names_the_bent_fingers_and_the_finger_one_goes_through(problem, reference_dir):
     """A plan that ends short of the pose names its bent fingers (`posture_report`): the ring, in the goal's
@@ -126,7 +110,7 @@ def test_the_report_names_the_bent_fingers_and_the_finger_one_goes_through(probl
     r = hand.fingers.index("ring")
     q_ring, e = finger_reach_ik(hand, q_start, "ring", T[:3, :3] @ run.goal_tips[r] + T[:3, 3], tol=REACH_TOL)
     assert np.linalg.norm(e) <= REACH_TOL
-    overlap = -_ring_middle_gap(hand, q_ring)
+    overlap = -finger_gap(hand, q_ring, "ring", "middle")
     assert overlap > 0.0
     gap = _posture_gap(problem, run.q, "ring")
     assert (f"ring {gap:.2f} rad (in the goal's posture its tip reaches the goal only through the middle "
@@ -159,4 +143,4 @@ def test_a_jammed_pair_gets_its_postures_back_once_one_moves_aside():
     contacts, sd = _exact_contacts(problem, middle.q, middle.T_palm_object)
     assert np.all(np.linalg.norm(contacts - goal.contacts_object, axis=1) <= options.zeta)
     assert np.all(np.abs(sd - hand.tip_radius) <= 5e-4)
-    assert _ring_middle_gap(hand, middle.q) >= options.finger_gait.self_clearance - 1e-5
+    assert finger_gap(hand, middle.q, "ring", "middle") >= options.finger_gait.self_clearance - 1e-5
