@@ -31,7 +31,7 @@ from regrasp_casadi.tip_ik import finger_reach_ik
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.planner import _Run
 
-__all__ = ["long_gait"]
+__all__ = ["long_gait", "reach_at_goal"]
 
 
 def long_gait(run: _Run, finger: str) -> bool:
@@ -40,13 +40,12 @@ def long_gait(run: _Run, finger: str) -> bool:
     that brings its contact closer to its goal is taken. Not tried (False) when the goal is out of the
     finger's reach at this pose (its IK, `tip_ik.finger_reach_ik`, ends farther than
     `stall_report.REACH_TOL`)."""
-    r, hand, T = run.fingers.index(finger), run.hand, run.T_palm_object
+    r, T = run.fingers.index(finger), run.T_palm_object
     goal_object = run.goal_tips[r]
     way = float(np.linalg.norm(goal_object - run.tips_object()[r]))
     if way <= 0.0:
         return False
-    q_goal, e = finger_reach_ik(hand, run.q, finger, T[:3, :3] @ goal_object + T[:3, 3], [run.q_goal],
-                                tol=REACH_TOL)  # from its joints, else the goal grasp's, else mid-range
+    q_goal, e = reach_at_goal(run, finger)
     if float(np.linalg.norm(e)) > REACH_TOL:
         return False
     eta = run.options.finger_gait.eta
@@ -61,3 +60,12 @@ def long_gait(run: _Run, finger: str) -> bool:
         if res.success and closer and accept_gait(run, finger, res):
             return True
     return False
+
+
+def reach_at_goal(run: _Run, finger: str) -> tuple[np.ndarray, np.ndarray]:
+    """`finger`'s IK at its goal tip centre at the run's object pose (`tip_ik.finger_reach_ik`, the links
+    ignored: from its joints, else the goal grasp's, else mid-range): q (n,) rad, the other fingers where
+    they are, and the tip error (3,), palm frame, m."""
+    T = run.T_palm_object
+    goal = T[:3, :3] @ run.goal_tips[run.fingers.index(finger)] + T[:3, 3]
+    return finger_reach_ik(run.hand, run.q, finger, goal, [run.q_goal], tol=REACH_TOL)

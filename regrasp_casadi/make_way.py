@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from regrasp_casadi.certified_round import accept_gait
-from regrasp_casadi.long_gait import long_gait
+from regrasp_casadi.long_gait import long_gait, reach_at_goal
 from regrasp_casadi.stall_report import REACH_TOL, blocker
 from regrasp_casadi.surface_route import surface_targets
 from regrasp_casadi.tip_ik import finger_reach_ik
@@ -45,9 +45,7 @@ def make_way(run: _Run, finger: str) -> bool:
     """Move the finger that `finger`'s reach posture at its goal runs through aside, then `long_gait`
     (see the module docstring); True when `finger` took a gait. Not tried (False) when its goal is out
     of reach at this object pose, or `move_aside` moves nothing."""
-    r, T = run.fingers.index(finger), run.T_palm_object
-    q_reach, e = finger_reach_ik(run.hand, run.q, finger, T[:3, :3] @ run.goal_tips[r] + T[:3, 3],
-                                 [run.q_goal], tol=REACH_TOL)
+    q_reach, e = reach_at_goal(run, finger)
     if float(np.linalg.norm(e)) > REACH_TOL:
         return False
     return move_aside(run, finger, q_reach) and long_gait(run, finger)
