@@ -11,7 +11,7 @@ A generated grasp G = (X, o, Θ) satisfies, checked with the *exact* mesh distan
 * joints within their limits;
 * the grasp can hold the object: **force closure** with Coulomb friction μ (0.5), see `grasp_quality`;
 * every finger can lift off its contact, and so touch down on it, the way a gait's path does
-  (`trajectory.lift_problem`: 5 mm along the contact normal within 45°, within the joint limits):
+  (`gait_path.lift_problem`: 5 mm along the contact normal within 45°, within the joint limits):
   a grasp whose finger the limits hold on the surface is one no gait reaches or leaves (measured: the
   ring of bowl seed 9's desired grasp, at its flexion limits on the bowl's floor, could rise 0.25 mm
   short of 5 mm only 73.8° off the normal; its plans stalled with the ring 48–64 mm from it).
@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 from regrasp_casadi.certificates import force_closure_certificate
 from regrasp_casadi.constants import BETA, MU, SELF_CLEARANCE
 from regrasp_casadi.errors import GraspError
+from regrasp_casadi.gait_path import lift_problem
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.grasp_feasibility import TIP_SPACING, UngraspableError, check_graspable
 from regrasp_casadi.grasp_nlp import SURFACE_TOL, GraspNLP, grasp_nlp, solve_exact
@@ -60,7 +61,7 @@ from regrasp_casadi.grasp_workspace import (
 from regrasp_casadi.hand import Hand
 from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.stability import FRICTION_EDGES, force_closure_quality, tangent_bases, torque_reference
-from regrasp_casadi.trajectory import TrajectoryOptions, lift_problem, motion_context
+from regrasp_casadi.trajectory import TrajectoryOptions, motion_context
 from regrasp_casadi.transforms import exp_so3, inv_T, make_T, transform_points
 
 __all__ = [
@@ -254,7 +255,7 @@ class _Search:
     grid: ClearanceGrid
     mu: float
     motion: Any
-    """`trajectory.motion_context` of the models, for the lift-off rule (`trajectory.lift_problem`)."""
+    """`trajectory.motion_context` of the models, for the lift-off rule (`gait_path.lift_problem`)."""
 
 
 def _search(hand: Hand, obj: ObjectModel, mu: float, beta: float, self_clearance: float | None) -> _Search:

@@ -12,7 +12,7 @@ than ζ, from checks independent of the NLPs at the plan's last grasp, for the p
 * **Through another finger**: reached, the finger's collision spheres overlap another finger's (or the
   palm's), the others where they are: that finger, or the object, must move first.
 * **No touch-down there**: reached, the finger could not lift off its goal contact in that posture
-  the way a gait's path does (`trajectory.lift_problem`), so no gait can put it down there either
+  the way a gait's path does (`gait_path.lift_problem`), so no gait can put it down there either
   (measured: bowl seed 9's desired grasp before `grasp_gen`'s lift-off rule, the ring on the floor at
   its flexion limits).
 * **No nearer point within η** (with `eta`): no point of the surface within η of the finger's contact is
@@ -32,9 +32,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from regrasp_casadi.gait_path import lift_problem
 from regrasp_casadi.surface_route import line_clearance
 from regrasp_casadi.tip_ik import finger_reach_ik
-from regrasp_casadi.trajectory import lift_problem, motion_context
+from regrasp_casadi.trajectory import motion_context
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.hand import Hand

@@ -12,13 +12,14 @@ import trimesh
 from grasp_checks import contact_normals, force_closure_lp
 from scipy.optimize import least_squares
 
+from regrasp_casadi.gait_path import lift_problem
 from regrasp_casadi.grasp_gen import SURFACE_TOL, generate_grasps, generate_regrasp_pairs
 from regrasp_casadi.grasp_nlp import _free_joint_step, sphere_offsets
 from regrasp_casadi.grasp_workspace import clear_samples, clearance_grid, workspace
 from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.stall_report import stalled_fingers
-from regrasp_casadi.trajectory import lift_problem, motion_context
+from regrasp_casadi.trajectory import motion_context
 from regrasp_casadi.transforms import inv_T, make_T, transform_points
 
 BETA = 1e-3
@@ -147,7 +148,7 @@ def _best_straight_rise(hand, obj, q, T_palm_object, finger, height):
 
 
 def test_a_finger_the_joint_limits_hold_on_the_floor_breaks_the_lift_rule():
-    """bowl seed 9's pair before the lift-off rule (`grasp_gen`, `trajectory.lift_problem`): only the
+    """bowl seed 9's pair before the lift-off rule (`grasp_gen`, `gait_path.lift_problem`): only the
     desired grasp's ring is flagged, and scipy's bounded least squares agrees: it cannot take that tip
     2 mm straight off the floor (the lowest lift, 2/5 of 5 mm; its best leans > 45°), while every other
     tip of both grasps gets there exactly."""
