@@ -18,7 +18,7 @@ move, the object stays.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +32,9 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.trajectory import _Context
 
 __all__ = ["gait_path", "lift_problem"]
+
+_ASIDE = (0.005, 0.01)
+"""How far a transit's via point moves away from the other finger it comes too close to, m."""
 
 _RISE_TOL = 0.1
 """A lift knot may fall short of its height along the normal by this fraction (joint limits)."""
@@ -158,57 +161,97 @@ def _max_lean(ctx: _Context, knots: NDArray, finger: str, n: NDArray) -> float:
 def _transit(ctx: _Context, q_a: NDArray, q_b: NDArray, finger: str, n_mid: NDArray, T: NDArray,
              also: NDArray) -> tuple[NDArray[np.float64], float, float, str, NDArray[np.float64]]:
     """Transit knots (k, n) from q_a to q_b, linear in joint space, directly or through one via point
-    raised by `via_heights` along n_mid (palm frame); the first whose finger spheres keep ≥ β from the
-    object and ≥ `self_clearance` from the other fingers, else the one with the largest margin. What is
-    closer at the lifted end q_a or q_b (a lift held short by the joint limits or the other fingers, a
-    link near the object in the grasp) keeps no worse than there, as OPT1 and `_clear_lift` do: per
-    sphere for the object (flat tool, index touch-down 0.70 mm off it), the finger's least distance to
-    the others, never below 0 (bowl seed 9 SD: an index lifted 0.47 mm from the middle); else both
-    gaits were refused at every iteration. The clearance of the finger's spheres at the knots `also`
-    (j, n) comes with the first attempt's query. Returns (knots, min clearance m, min distance to the
-    other fingers m, why, clearance of `also` (j, spheres) m)."""
+    raised by `via_heights` along n_mid (palm frame), else (when another finger is what it comes too
+    close to) raised by 0 or `via_heights` and moved `_ASIDE` away from the closest other finger's sphere
+    across n_mid; the first whose finger spheres keep ≥ β from the object and ≥ `self_clearance` from
+    the other fingers, else the one with the largest margin. What is closer at the lifted end q_a or q_b
+    (a lift held short by the joint limits or the other fingers, a link near the object in the grasp)
+    keeps no worse than there, as OPT1 and `_clear_lift` do: per sphere for the object (flat tool, index
+    touch-down 0.70 mm off it), the finger's least distance to the others, never below 0 (bowl seed 9
+    SD: an index lifted 0.47 mm from the middle); else both gaits were refused at every iteration. The
+    clearance of the finger's spheres at the knots `also` (j, n) comes with the first attempt's query.
+    Returns (knots, min clearance m, min distance to the other fingers m, why, clearance of `also` (j,
+    spheres) m)."""
     hand, o = ctx.hand, ctx.options
     spheres = ctx.finger_spheres(finger)
     r = hand.fingers.index(finger)
     p_mid = 0.5 * (hand.tip_positions(q_a)[r] + hand.tip_positions(q_b)[r])
     q_mid = 0.5 * (q_a + q_b)
-    best: tuple | None = None
-    clear_also = np.zeros((0, len(spheres)))
-    for attempt, height in enumerate((None, *o.via_heights)):
-        waypoints = [q_a, q_b]
-        if height is not None:
-            via, _ = _ik(ctx, q_mid, [finger], (p_mid + height * n_mid)[None], hand.finger_joints[finger],
-                         q_mid)  # as high as the joint limits allow: the clearances judge it
-            waypoints = [q_a, via, q_b]
-        legs = [_knots(ctx, _linear(a, b), 2, linear=True)[1:]
-                for a, b in zip(waypoints, waypoints[1:], strict=False)]
-        Q = np.concatenate([legs[0][0]] + [leg[0][1:] for leg in legs[1:]])
-        first = attempt == 0
-        Q_all = np.concatenate([Q, also]) if first else Q
-        clear_all = ctx.clearance(Q_all, np.repeat(T[None], len(Q_all), axis=0), spheres, o.beta)
-        if first:
-            clear_also = clear_all[len(Q):]
-        gaps = ctx.self_distance(Q, finger)
-        clear, self_clear = float(np.min(clear_all[: len(Q)])), float(np.min(gaps))
-        if first:  # per sphere: β, or no worse than at the lifted ends where it is closer there
-            floor = np.minimum(o.beta, np.min(clear_all[[0, len(Q) - 1]], axis=0)) - 1e-9
-            self_floor = min(max(min(gaps[0], gaps[-1]), 0.0), o.self_clearance or 0.0) - 1e-9
-        why = "; ".join(w for _, w in legs if w)
-        dip, self_dip = float(np.min(clear_all[: len(Q)] - floor)), self_clear - self_floor  # < 0: below
-        margin = min(dip, self_dip)
-        if best is None or margin > best[1]:
-            best = (Q, margin, why, clear, self_clear, dip, self_dip)
-        if margin >= 0.0:
+    Q, why = _transit_knots(ctx, [q_a, q_b])
+    clear_all = ctx.clearance(np.concatenate([Q, also]), np.repeat(T[None], len(Q) + len(also), axis=0),
+                              spheres, o.beta)
+    clear_also, gaps = clear_all[len(Q):], ctx.self_distance(Q, finger)
+    # per sphere: β, or no worse than at the lifted ends where it is closer there
+    floor = np.minimum(o.beta, np.min(clear_all[[0, len(Q) - 1]], axis=0)) - 1e-9
+    self_floor = min(max(min(gaps[0], gaps[-1]), 0.0), o.self_clearance or 0.0) - 1e-9
+
+    def judged(Q: NDArray, clear: NDArray, gaps: NDArray, why: str) -> _Transit:
+        dip, self_dip = float(np.min(clear - floor)), float(np.min(gaps)) - self_floor  # < 0: below
+        return _Transit(Q, min(dip, self_dip), why, float(np.min(clear)), float(np.min(gaps)), dip, self_dip)
+
+    def through(p_via: NDArray) -> _Transit:
+        via, _ = _ik(ctx, q_mid, [finger], p_via[None], hand.finger_joints[finger],
+                     q_mid)  # as high as the joint limits allow: the clearances judge it
+        Q, why = _transit_knots(ctx, [q_a, via, q_b])
+        return judged(Q, ctx.clearance(Q, np.repeat(T[None], len(Q), axis=0), spheres, o.beta),
+                      ctx.self_distance(Q, finger), why)
+
+    best = judged(Q, clear_all[: len(Q)], gaps, why)
+    for height in o.via_heights if best.margin < 0.0 else ():
+        best = max(best, through(p_mid + height * n_mid), key=lambda t: t.margin)
+        if best.margin >= 0.0:
             break
-    assert best is not None
-    Q, margin, why, clear, self_clear, dip, self_dip = best
-    if dip < 0.0:
-        why += (f"; transit clearance {clear * 1e3:.3f} mm < β = {o.beta * 1e3:.3f} mm (or a sphere "
-                f"{-dip * 1e3:.3f} mm closer than at the transit's ends, where it is closer than β)")
-    if self_dip < 0.0:
-        why += (f"; transit {self_clear * 1e3:.3f} mm from another finger < {o.self_clearance * 1e3:.3f} mm "
-                f"(or {-self_dip * 1e3:.3f} mm closer than at the transit's ends, where it is closer)")
-    return Q, clear, self_clear, why.strip("; "), clear_also
+    away = _away_from_others(ctx, best.Q, finger, n_mid) if best.self_dip < 0.0 else None
+    for aside, height in ((d, h) for d in _ASIDE for h in (0.0, *o.via_heights)) if away is not None else ():
+        best = max(best, through(p_mid + height * n_mid + aside * away), key=lambda t: t.margin)
+        if best.margin >= 0.0:
+            break
+    why = best.why
+    if best.dip < 0.0:
+        why += (f"; transit clearance {best.clear * 1e3:.3f} mm < β = {o.beta * 1e3:.3f} mm (or a sphere "
+                f"{-best.dip * 1e3:.3f} mm closer than at the transit's ends, where it is closer than β)")
+    if best.self_dip < 0.0:
+        why += (f"; transit {best.self_clear * 1e3:.3f} mm from another finger < "
+                f"{o.self_clearance * 1e3:.3f} mm (or {-best.self_dip * 1e3:.3f} mm closer than at the "
+                f"transit's ends, where it is closer)")
+    return best.Q, best.clear, best.self_clear, why.strip("; "), clear_also
+
+
+class _Transit(NamedTuple):
+    """One transit tried: knots (k, n), margin (m, ≥ 0: it passes), why its knots failed, least
+    clearance from the object and from the other fingers (m), and how far below their floors (m)."""
+
+    Q: NDArray
+    margin: float
+    why: str
+    clear: float
+    self_clear: float
+    dip: float
+    self_dip: float
+
+
+def _transit_knots(ctx: _Context, waypoints: list[NDArray]) -> tuple[NDArray[np.float64], str]:
+    """Knots (k, n) linear in joint space through the waypoints, dense for `max_point_step`, and why a
+    leg failed ("")."""
+    legs = [_knots(ctx, _linear(a, b), 2, linear=True)[1:] for a, b in zip(waypoints, waypoints[1:],
+                                                                           strict=False)]
+    Q = np.concatenate([legs[0][0]] + [leg[0][1:] for leg in legs[1:]])
+    return Q, "; ".join(w for _, w in legs if w)
+
+
+def _away_from_others(ctx: _Context, Q: NDArray, finger: str, n: NDArray) -> NDArray[np.float64] | None:
+    """(3,) unit direction, palm frame, across n, from the other finger's (or the palm's) sphere closest
+    to the finger's spheres over the knots Q (k, n) to the finger's; None when not checked."""
+    pairs = ctx.self_pairs.get(finger, np.zeros((0, 2), dtype=int))
+    if not len(pairs):
+        return None
+    C, rad = ctx.centers(Q), ctx.radii
+    gap = np.linalg.norm(C[:, pairs[:, 0]] - C[:, pairs[:, 1]], axis=2) - rad[pairs[:, 0]] - rad[pairs[:, 1]]
+    k, p = np.unravel_index(int(np.argmin(gap)), gap.shape)
+    a, b = pairs[p]
+    v = (C[k, a] - C[k, b]) * (1.0 if ctx.sphere_finger[a] == finger else -1.0)
+    u = v - (v @ n) * n
+    return u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-9 else None
 
 
 def gait_path(ctx: _Context, a: PlanStep, b: PlanStep) -> StepPath:
