@@ -8,10 +8,11 @@ distance for the checks.
 
 * **Gait** (one finger r moves, the object stays): lift-off of r's tip centre along its contact normal
   by `lift_height`, a transit linear in joint space between the lifted start and the lifted point above
-  the new contact (through a via point raised above the object when a sample comes closer than β),
-  touch-down along the new contact's normal. Only r's joints change. The lift-off and touch-down come
-  from IK on the tip (the touch-down is the lift from the new contact, reversed, so it ends exactly at
-  the step); `gait_path` builds them on this module's IK and knots.
+  the new contact (through a via point raised above the object when a sample comes closer than β, or
+  moved away from another finger it comes too close to), touch-down along the new contact's normal.
+  Only r's joints change. The lift-off and touch-down come from IK on the tip (the touch-down is the
+  lift from the new contact, reversed, so it ends exactly at the step); `gait_path` builds them on this
+  module's IK and knots.
 * **Reposing** (repose and final steps; the object moves with the hand): `repose_trajectory.repose_path`
   (the object pose interpolated from step A to step B, the tip centres held in the object frame, IK for
   all fingers; where the joints alone cannot follow, the object follows the hand).

@@ -108,7 +108,7 @@ def test_keyframes_play_the_paths_at_the_stated_timing(motion_plan, models, fram
 def test_a_gait_lifts_the_tip_off_the_surface_and_hides_its_contact(motion_plan, models, frames, hand):
     plan, obj = motion_plan, models[1]
     lift = plan.options["trajectory"]["lift_height"]
-    rise_tol = 0.1   # trajectory._RISE_TOL: a lift may fall short of its height by 10 % (joint limits)
+    rise_tol = 0.1   # gait_path._RISE_TOL: a lift may fall short of its height by 10 % (joint limits)
 
     def clearance(f, finger):
         T = f.T_palm_object
