@@ -8,8 +8,9 @@ move, the object stays.
   stays within the joint limits and `max_lift_angle`, and keeps the finger's other spheres out of the
   object. The touch-down is the lift from the new contact, reversed.
 * **Transit** (`_transit`): linear in joint space between the lifted ends, directly or through a via
-  point raised by `via_heights` above their midpoint, its spheres ≥ β from the object and ≥
-  `self_clearance` from the other fingers (or no closer than at the lifted ends).
+  point raised by `via_heights` above their midpoint, else (another finger too close) one also moved
+  `_ASIDE` away from that finger, its spheres ≥ β from the object and ≥ `self_clearance` from the other
+  fingers (or no closer than at the lifted ends).
 
     >>> path = gait_path(ctx, step_a, step_b)     # ctx: `trajectory.motion_context(hand, obj)`
     >>> why = lift_problem(ctx, q, T_palm_object, "index")
