@@ -66,7 +66,7 @@ def _normal_palm(ctx: _Context, q: NDArray, T_palm_object: NDArray, contact_obje
     return T[:3, :3] @ (n / np.linalg.norm(n))
 
 
-def _clear_lift(ctx: _Context, q0: NDArray, T_palm_object: NDArray, finger: str, n_palm: NDArray
+def _clear_lift(ctx: _Context, q0: NDArray, T_palm_object: NDArray | None, finger: str, n_palm: NDArray
                 ) -> tuple[NDArray[np.float64], str]:
     """`_lift` by `lift_height`, else lower (3/5, 2/5 of it), else leaning 25°, 40° away from the closest
     other finger (full, 3/5, 2/5 height), when the lift brings the finger closer to another than
@@ -74,32 +74,27 @@ def _clear_lift(ctx: _Context, q0: NDArray, T_palm_object: NDArray, finger: str,
     among those whose tip rises at least β along n_palm (a thumb touch-down on bottle_regrasp cleared the
     palm by 0.33 mm only leaning 40° at 2/5 height; a middle lift-off held at its joint limits must not
     trade its rise for clearance from the others). A lift that would put another sphere of the finger into
-    the object (hand at q0 (n,) rad, object at `T_palm_object` (4, 4)) is passed over for the next
-    (measured: the generated cup pair of seed 15, svd, an index inside the cup near its rim: the full
-    lift put its middle link 0.12 mm into the rim, 3/5 of it kept 0.24 mm clear; the gait path was
-    refused)."""
+    the object (hand at q0 (n,) rad, object at `T_palm_object` (4, 4); None: not checked) is passed over
+    for the next (measured: the generated cup pair of seed 15, svd, an index inside the cup near its rim:
+    the full lift put its middle link 0.12 mm into the rim, 3/5 of it kept 0.24 mm clear; the gait path
+    was refused)."""
     o = ctx.options
     floor = min(o.self_clearance or 0.0, float(ctx.self_distance(q0[None], finger)[0])) - 1e-9
     best: tuple[tuple, NDArray[np.float64], str] | None = None
     tries = [(n_palm, f) for f in (1.0, 0.6, 0.4)]
-    pairs = ctx.self_pairs.get(finger, np.zeros((0, 2), dtype=int))
-    if len(pairs):  # away from the closest sphere of another finger (or the palm), in the tangent plane
-        C, r = ctx.centers(q0[None])[0], ctx.radii
-        a, b = pairs[int(np.argmin(np.linalg.norm(C[pairs[:, 0]] - C[pairs[:, 1]], axis=1)
-                                   - r[pairs[:, 0]] - r[pairs[:, 1]]))]
-        v = (C[a] - C[b]) * (1.0 if ctx.sphere_finger[a] == finger else -1.0)
-        u = v - (v @ n_palm) * n_palm
-        leans = [n_palm + math.tan(math.radians(deg)) * u / max(np.linalg.norm(u), 1e-12) for deg in (25, 40)]
+    u = _away_from_others(ctx, q0[None], finger, n_palm)  # from the closest other finger's sphere (or palm)
+    if u is not None:  # leaning that way, in the tangent plane
+        leans = [n_palm + math.tan(math.radians(deg)) * u for deg in (25, 40)]
         tries += [(d / np.linalg.norm(d), f) for d in leans for f in (1.0, 0.6, 0.4)]
     r_tip = ctx.hand.fingers.index(finger)
     mine = ctx.finger_spheres(finger)
-    links = mine[mine != ctx.tip_index[finger]]
-    T = np.asarray(T_palm_object, dtype=float)
+    links = mine[mine != ctx.tip_index[finger]] if T_palm_object is not None else mine[:0]
+    Ts = None if T_palm_object is None else np.asarray(T_palm_object, dtype=float)[None]
     for direction, fraction in tries:
         knots, why = _lift(ctx, q0, finger, direction, fraction * o.lift_height)
         gap = float(np.min(ctx.self_distance(knots, finger)))
         rise = float((ctx.hand.tip_positions(knots[-1])[r_tip] - ctx.hand.tip_positions(q0)[r_tip]) @ n_palm)
-        outside = not links.size or float(np.min(ctx.clearance(knots, np.repeat(T[None], len(knots), axis=0),
+        outside = not links.size or float(np.min(ctx.clearance(knots, np.repeat(Ts, len(knots), axis=0),
                                                                links))) >= 0.0
         # off the surface by the transit's β first, clear of the others, within the lean limit, the links out
         key = (rise >= o.beta, gap >= floor, not why, outside, gap)
@@ -242,7 +237,8 @@ def _transit_knots(ctx: _Context, waypoints: list[NDArray]) -> tuple[NDArray[np.
 
 def _away_from_others(ctx: _Context, Q: NDArray, finger: str, n: NDArray) -> NDArray[np.float64] | None:
     """(3,) unit direction, palm frame, across n, from the other finger's (or the palm's) sphere closest
-    to the finger's spheres over the knots Q (k, n) to the finger's; None when not checked."""
+    to the finger's spheres over the knots Q (k, n) to the finger's; None when the finger's pairs are not
+    checked or that direction is along n."""
     pairs = ctx.self_pairs.get(finger, np.zeros((0, 2), dtype=int))
     if not len(pairs):
         return None
@@ -306,6 +302,7 @@ def lift_problem(ctx: _Context, q: NDArray, T_palm_object: NDArray, finger: str)
     way a gait's path does (`_clear_lift`: `lift_height` along the contact normal, lower or leaning, within
     the joint limits and `max_lift_angle`), nor so touch down on it; "" when it can. Only the tip's
     rise, the lean and the joint limits count here (grasp generation's rule): a lift that keeps the other
-    fingers or the finger's links clear is preferred, but a lift that cannot is not reported."""
+    fingers clear is preferred, but a lift that cannot is not reported; the links' clearance from the
+    object is not looked at (grasp generation asks this of every candidate grasp)."""
     n_palm = _normal_palm(ctx, q, T_palm_object, None, finger)
-    return _clear_lift(ctx, np.asarray(q, dtype=float), T_palm_object, finger, n_palm)[1]
+    return _clear_lift(ctx, np.asarray(q, dtype=float), None, finger, n_palm)[1]
