@@ -19,7 +19,14 @@ from numpy.typing import NDArray
 
 from regrasp_casadi.certificates import Certificate
 from regrasp_casadi.certified_round import accept_gait, certified_round
-from regrasp_casadi.final_moves import FinalMoves, decide_status, part_way, pose_distance, run_final_moves
+from regrasp_casadi.final_moves import (
+    FinalMoves,
+    aimed_moves,
+    decide_status,
+    part_way,
+    pose_distance,
+    run_final_moves,
+)
 from regrasp_casadi.finger_gait import FingerGaitNLP
 from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.grasp_metrics import tip_frames, tip_slip
@@ -532,13 +539,16 @@ _REGAIT_STOPS = ("contact_drift", "rejected", "unrealisable", "uncertified", "no
 def _finish(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
             outcome: FinalMoves | None = None) -> Plan:
     """The plan of a run whose iterations ended: the final moves (`outcome`, when they have run) if the
-    contacts are reached, then "converged", "pose_not_reached" or "iteration_limit"
-    (`final_moves.decide_status`; "pose_not_reached" names the fingers bent unlike the goal grasp,
-    `reposture.posture_report`)."""
+    contacts are reached and, when they stopped short with one component of the pose within tolerance,
+    moves towards the other alone (`final_moves.aimed_moves`), then "converged", "pose_not_reached" or
+    "iteration_limit" (`final_moves.decide_status`; "pose_not_reached" names the fingers bent unlike the
+    goal grasp, `reposture.posture_report`)."""
     if outcome is None:
         outcome = FinalMoves("not_run", 0, ())
         if options.final_move and run.largest_error() <= options.zeta:
             outcome = run_final_moves(run, options)
+    if outcome.stop not in ("reached", "not_run", "time_budget") and run.largest_error() <= options.zeta:
+        outcome = aimed_moves(run, options, outcome)  # one pose component within tolerance, the other not
     status, detail = decide_status(run, options, outcome)
     if status == "pose_not_reached":
         detail += posture_report(run)
