@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from regrasp_casadi.grasp_metrics import pose_error
-from regrasp_casadi.in_grasp import clip_pose, trust_region
+from regrasp_casadi.in_grasp_targets import clip_pose, trust_region
 from regrasp_casadi.transforms import exp_so3, interpolate_pose, log_SO3, make_T
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -110,7 +110,7 @@ def pose_distance(T_a: NDArray, T_b: NDArray, obj: ObjectModel) -> float:
 
 def part_way(T_now: NDArray, T_goal: NDArray, trust: tuple[float, float], reach: float) -> NDArray:
     """The pose (4, 4) `reach` ∈ (0, 1] of the way from `T_now` to `T_goal`, or to where the trust
-    region `trust` (`in_grasp.trust_region`) ends on the way when that is nearer."""
+    region `trust` (`in_grasp_targets.trust_region`) ends on the way when that is nearer."""
     return interpolate_pose(T_now, clip_pose(T_now, T_goal, *trust), reach)
 
 

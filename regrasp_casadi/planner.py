@@ -32,7 +32,8 @@ from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.grasp_metrics import tip_frames, tip_slip
 from regrasp_casadi.hand_orientation import pinned_opposer_hint
 from regrasp_casadi.holding import Holding
-from regrasp_casadi.in_grasp import InGraspNLP, svd_target, trust_region
+from regrasp_casadi.in_grasp import InGraspNLP
+from regrasp_casadi.in_grasp_targets import svd_target, trust_region
 from regrasp_casadi.interrupts import InterruptRequest, deferred_interrupts
 from regrasp_casadi.long_gait import long_gait
 from regrasp_casadi.make_way import make_way
