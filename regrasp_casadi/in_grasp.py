@@ -51,6 +51,8 @@ __all__ = ["InGraspOptions", "InGraspResult", "InGraspNLP", "WorkspaceHull", "wo
 _log = logging.getLogger(__name__)
 
 _MM = 1e3  # positions in the objective and distance constraints: m → mm
+
+
 @dataclass(frozen=True)
 class InGraspOptions(_solver.NLPOptions):
     """Knobs of OPT2 (paper §III-B), beyond the NLPs' common ones (β, τ, ...); SI units. `max_corrections`:
