@@ -28,6 +28,7 @@ from regrasp_casadi.final_moves import (
     run_final_moves,
 )
 from regrasp_casadi.finger_gait import FingerGaitNLP
+from regrasp_casadi.free_finger import free_finger
 from regrasp_casadi.grasp import require_grasp
 from regrasp_casadi.grasp_metrics import tip_frames, tip_slip
 from regrasp_casadi.hand_orientation import pinned_opposer_hint
@@ -148,6 +149,8 @@ class _Run:
         """Whether the certified round stages pinned fingers (`staging`): a stalled plan's last resort."""
         self.staging = None
         """The support configuration the certified round is moving towards (`staging.Staging`), or None."""
+        self.freeing_tried: set[str] = set()
+        """Fingers whose re-posture gait has had the object reposed for it (`reposture`), once per plan."""
         self.staging_failed: dict[str, int] = {}
         """Pinned fingers whose staging search found nothing → the iteration it was tried."""
         self.motion = None if not options.trajectories else _trajectory_context(self.hand, self.obj, options)
@@ -292,7 +295,9 @@ class _Run:
             o = self.options
             if self.stalled >= o.stall_escape and self.steps[-1].contact_error[r] > o.zeta:
                 # from its IK at the goal: out of OPT1's local minimum; else past a finger in its way
-                long_gait(self, finger) or make_way(self, finger)
+                moved = long_gait(self, finger) or make_way(self, finger)
+                if not moved and self.stalled == o.free_after:  # once per stall: a search of object poses
+                    free_finger(self, finger)
 
     def _most_stable_gait(self, todo: list[str]) -> str:
         """Remove and return the finger of `todo` whose lift leaves the best-held grasp."""

@@ -121,6 +121,11 @@ class PlannerOptions:
     to the paper: the workspaces' target cannot pull a goal that is inside a finger's workspace hull but
     out of its reach, and the desired pose can be blocked by the grasp on the way (the generated cup pair
     of seed 4 stalled so with SD, its escapes creeping < 1 mm per iteration; it converges with it)."""
+    free_after: int | None = 5
+    """After this many iterations without progress, a finger beyond ζ whose goal is out of its reach or
+    reached only with a link in the object, and which `long_gait` and `make_way` did not move, has the
+    object reposed towards a few other poses until its goal is within reach cleanly, then takes a gait
+    (`free_finger`; once per stall; an addition to the paper). None: never."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)

@@ -39,8 +39,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from regrasp_casadi.certified_round import accept_gait
+from regrasp_casadi.free_finger import reposed_until
 from regrasp_casadi.make_way import move_aside
-from regrasp_casadi.stall_report import REACH_TOL, through_others
+from regrasp_casadi.stall_report import REACH_TOL, blocker, link_depth, through_others
 from regrasp_casadi.tip_ik import finger_reach_ik
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -79,6 +80,8 @@ def reposture_round(run: _Run, outcome: FinalMoves) -> bool:
         elif run.holding is None and move_aside(run, finger, _goal_posture_ik(run, finger)[0]):
             moved = True  # a neighbour in the way moved aside (uncertified: without stability only)
             _reposture(run, finger)
+        elif run.holding is None and _freed_reposture(run, finger):
+            moved = True  # the object reposed until the goal posture was clear, then the gait
     if moved:
         run.iterations += 1
         run.errors.append(float(np.mean(run.steps[-1].contact_error)))
@@ -110,11 +113,45 @@ def _reposture(run: _Run, finger: str) -> bool:
     return accept_gait(run, finger, res, certificate)
 
 
-def _goal_posture_ik(run: _Run, finger: str) -> tuple[np.ndarray, np.ndarray]:
-    """`finger`'s IK at its goal tip centre (the run's object pose), started from the goal grasp's joints
-    (`tip_ik.finger_reach_ik`): q (n,) rad, the other fingers where they are, and the tip error (3,) m."""
-    r, T = run.fingers.index(finger), run.T_palm_object
-    q_start = run.q.copy()
+def _freed_reposture(run: _Run, finger: str) -> bool:
+    """Repose the object towards other poses until `finger`'s goal posture at its goal is clear
+    (`posture_obstruction`), then its re-posture gait (`free_finger.reposed_until`); True when the gait
+    was taken. Tried once per finger and plan, and not when only another finger is in the way
+    (`move_aside`'s case)."""
+    if finger in run.freeing_tried:
+        return False
+    run.freeing_tried.add(finger)
+    if posture_obstruction(run, finger, run.q, run.T_palm_object) in ("", "finger"):
+        return False
+    return reposed_until(run, lambda q, T: posture_obstruction(run, finger, q, T),
+                         lambda: _reposture(run, finger))
+
+
+def posture_obstruction(run: _Run, finger: str, q: np.ndarray, T_palm_object: np.ndarray) -> str:
+    """What keeps `finger`'s re-posture gait from the grasp (`q` (n,) rad, `T_palm_object` (4, 4)):
+    "reach" (its goal out of reach from the goal grasp's joints), "object" (reached with a link in the
+    object, `stall_report.link_depth`), "finger" (through another finger, `stall_report.blocker`),
+    "posture" (the IK no nearer the goal posture by `POSTURE_GAIN`) or "" (nothing)."""
+    q_init, e = _goal_posture_ik(run, finger, q, T_palm_object)
+    if float(np.linalg.norm(e)) > REACH_TOL:
+        return "reach"
+    if link_depth(run.hand, run.obj, q_init, T_palm_object, finger) < 0.0:
+        return "object"
+    if blocker(run.hand, q_init, finger) is not None:
+        return "finger"
+    if posture_distance(run, q_init, finger) > posture_distance(run, q, finger) - POSTURE_GAIN:
+        return "posture"
+    return ""
+
+
+def _goal_posture_ik(run: _Run, finger: str, q: np.ndarray | None = None,
+                     T_palm_object: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """`finger`'s IK at its goal tip centre (object pose `T_palm_object` (4, 4), default the run's),
+    started from the goal grasp's joints (`tip_ik.finger_reach_ik`): q (n,) rad, the other fingers as in
+    `q` (default the run's), and the tip error (3,) m."""
+    r = run.fingers.index(finger)
+    T = run.T_palm_object if T_palm_object is None else T_palm_object
+    q_start = (run.q if q is None else q).copy()
     idx = run.hand.finger_joints[finger]
     q_start[idx] = run.q_goal[idx]
     return finger_reach_ik(run.hand, q_start, finger, T[:3, :3] @ run.goal_tips[r] + T[:3, 3], tol=REACH_TOL)

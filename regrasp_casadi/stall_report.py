@@ -95,8 +95,7 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
             why.append(f"out of its reach at this object pose (its tip gets no closer than "
                        f"{float(np.linalg.norm(e)) * 1e3:.1f} mm)")
         else:  # reached: with its other links clear of the object?
-            links = (np.asarray(hand.sphere_centers(q_reach, finger), float).reshape(-1, 3) - t) @ R
-            depth = float(np.min(obj.exact_signed_distance(links) - hand.sphere_radii(finger)))
+            depth = link_depth(hand, obj, q_reach, T_palm_object, finger)
             if depth < 0.0:
                 why.append(f"at this object pose its tip reaches the goal only with a link "
                            f"{-depth * 1e3:.1f} mm in the object")
@@ -112,6 +111,31 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
                            f"surface that near is more than {gain * 1e3:.1f} mm nearer its goal")
         parts.append(f"{finger} {contact_error[r] * 1e3:.1f} mm" + (f" ({'; '.join(why)})" if why else ""))
     return "; not at their goals: " + " | ".join(parts) if parts else ""
+
+
+def link_depth(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDArray, finger: str) -> float:
+    """The least distance (m, < 0: inside) from `finger`'s collision spheres at `q` (n,) rad to the object
+    at `T_palm_object` (4, 4) (exact signed distance less the sphere radii)."""
+    R, t = np.asarray(T_palm_object, float)[:3, :3], np.asarray(T_palm_object, float)[:3, 3]
+    links = (np.asarray(hand.sphere_centers(q, finger), float).reshape(-1, 3) - t) @ R
+    return float(np.min(obj.exact_signed_distance(links) - hand.sphere_radii(finger)))
+
+
+def reach_obstruction(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDArray,
+                      goal_tip_object: NDArray, finger: str, q_goal: NDArray | None = None) -> str:
+    """What keeps `finger` from its goal tip centre `goal_tip_object` (3,), object frame, m, at the grasp
+    (`q` (n,) rad, `T_palm_object` (4, 4)), by its IK there (`tip_ik.finger_reach_ik`, the other fingers
+    where they are; `q_goal` (n,) rad a further start): "reach" (out of its reach), "object" (reached
+    only with a link in the object, `link_depth`), "finger" (only through another finger or the palm,
+    `blocker`) or "" (nothing)."""
+    R, t = np.asarray(T_palm_object, float)[:3, :3], np.asarray(T_palm_object, float)[:3, 3]
+    goal_palm = R @ np.asarray(goal_tip_object, float) + t
+    q_reach, e = finger_reach_ik(hand, np.asarray(q, float), finger, goal_palm, [q_goal], tol=REACH_TOL)
+    if float(np.linalg.norm(e)) > REACH_TOL:
+        return "reach"
+    if link_depth(hand, obj, q_reach, T_palm_object, finger) < 0.0:
+        return "object"
+    return "finger" if blocker(hand, q_reach, finger) is not None else ""
 
 
 def reached_through_others(hand: Hand, q: NDArray, T_palm_object: NDArray, goal_tips_object: NDArray,
