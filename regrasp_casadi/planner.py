@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
@@ -27,6 +27,7 @@ from regrasp_casadi.final_moves import (
     pose_distance,
     run_final_moves,
 )
+from regrasp_casadi.final_rounds import REGAIT_REACH, EndRounds, Fallback, regait
 from regrasp_casadi.finger_gait import FingerGaitNLP
 from regrasp_casadi.free_finger import free_finger
 from regrasp_casadi.grasp import require_grasp
@@ -41,7 +42,7 @@ from regrasp_casadi.make_way import make_way
 from regrasp_casadi.nlp_cache import NLPCache, clear_built_solvers
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions, input_problem
-from regrasp_casadi.reposture import posture_report, reposture_round
+from regrasp_casadi.reposture import posture_report
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.stall_report import reached_through_others, stalled_fingers
 from regrasp_casadi.surface_route import gait_target
@@ -149,8 +150,6 @@ class _Run:
         """Whether the certified round stages pinned fingers (`staging`): a stalled plan's last resort."""
         self.staging = None
         """The support configuration the certified round is moving towards (`staging.Staging`), or None."""
-        self.freeing_tried: set[str] = set()
-        """Fingers whose re-posture gait has had the object reposed for it (`reposture`), once per plan."""
         self.staging_failed: dict[str, int] = {}
         """Pinned fingers whose staging search found nothing → the iteration it was tried."""
         self.motion = None if not options.trajectories else _trajectory_context(self.hand, self.obj, options)
@@ -269,7 +268,8 @@ class _Run:
         """One finger gait (OPT1) for each finger of the gait pattern not yet at its goal, in the
         pattern's order or the stability order; a rejected gait leaves the finger where it is; once the
         plan has made no progress for `stall_escape` iterations, a finger still beyond ζ also tries
-        `long_gait`, then `make_way`. With stability on, only certified moves
+        `long_gait`, then `make_way`, and once, after `free_after` iterations, `free_finger`. With
+        stability on, only certified moves
         (`certified_round.certified_round`)."""
         if self.holding is not None:
             certified_round(self)
@@ -395,13 +395,23 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
 
 def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
              progress: ProgressCallback | None, stop: InterruptRequest) -> Plan:
-    """Algorithm 1's loop: gait rounds and reposings until the contacts are within ζ, then the final
-    moves (and, when they stop short, `_polish`, else re-posture gaits (`reposture`), and the final
-    moves again, or `_regait` and on), the iteration limit, a stall, or a Ctrl-C (`stop`: the plan so far,
-    status "interrupted")."""
+    """Algorithm 1's loop (`_iterate_from`); a plan that does not converge after a `free_postures`
+    round goes back to the grasp before that round and on without it (`EndRounds.undo_branch`)."""
+    rounds = EndRounds()
+    while True:
+        plan = _iterate_from(grasp0, grasp_goal, options, t_start, run, progress, stop, rounds=rounds)
+        if plan.status in ("converged", "interrupted") or not rounds.undo_branch(run):
+            return plan
+
+
+def _iterate_from(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
+                  progress: ProgressCallback | None, stop: InterruptRequest, *, rounds: EndRounds) -> Plan:
+    """Algorithm 1's loop from the run's grasp: gait rounds and reposings until the contacts are within
+    ζ, then the final moves (and, when they stop short, the `rounds` of `final_rounds`: `polish`, else
+    re-posture gaits, or once `free_postures`, and the final moves again, or `regait` and on), the
+    iteration limit, a stall, or a Ctrl-C (`stop`: the plan so far, status "interrupted")."""
     watch = _ProgressWatch(options, run.largest_error())
-    back: _Fallback | None = None  # the run's state before the last `_regait`
-    polished = repostured = 0  # `_polish` and `_reposture` rounds so far
+    back: Fallback | None = None  # the run's state before the last `regait`
 
     def end(status: str, detail: str) -> Plan:  # a plan that did not converge: before a failed regait
         if back is None:
@@ -411,14 +421,10 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
     while run.iterations < options.max_iters:
         if run.largest_error() <= options.zeta:
             outcome = run_final_moves(run, options) if options.final_move else FinalMoves("not_run", 0, ())
-            if polished < options.final_polish and _polish(run, options, outcome):
-                polished += 1
+            if rounds.next(run, options, outcome):  # a polish or re-posture round moved a finger
                 continue
-            if repostured < options.final_reposture and reposture_round(run, outcome):
-                repostured += 1
-                continue
-            state = _Fallback(len(run.steps), run.q, run.T_palm_object, outcome, run.iterations)
-            if not _regait(run, options, outcome):
+            state = Fallback(len(run.steps), run.q, run.T_palm_object, outcome, run.iterations)
+            if not regait(run, options, outcome):
                 return _finish(grasp0, grasp_goal, options, t_start, run, outcome)
             back, watch = state, _ProgressWatch(options, run.largest_error())
         run.failures.clear()
@@ -453,39 +459,18 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
     return _finish(grasp0, grasp_goal, options, t_start, run)
 
 
-@dataclass(frozen=True)
-class _Fallback:
-    """The run's state when the final moves stopped and `_regait` went on: steps kept, joints, object
-    pose, the final moves' outcome and the iterations then."""
-
-    n_steps: int
-    q: NDArray
-    T_palm_object: NDArray
-    outcome: FinalMoves
-    iterations: int
-
-    def restore(self, run: _Run, status: str) -> FinalMoves:
-        """Drop the steps made since, return to that grasp; the outcome, noting how re-gaiting ended."""
-        tried = run.iterations - self.iterations
-        del run.steps[self.n_steps:]
-        run.q, run.T_palm_object = self.q, self.T_palm_object
-        note = (f"{self.outcome.note + '; ' if self.outcome.note else ''}re-gaiting towards the desired pose "
-                f"ended {status.replace('_', ' ')} after {tried} iterations; the plan ends before it")
-        return replace(self.outcome, note=note)
-
-
 def _repose(run: _Run, escape: bool) -> None:
     """The iteration's reposing (`_Run.repose`); a stall escape refused for the whole way to the desired
-    pose is asked again for part of it (`_REGAIT_REACH`), as `_regait` does. With method "sd", an escape
-    that brings the object less than `PlannerOptions.sd_escape_gain` closer to the desired pose is
-    followed by a reposing towards the SVD target (the goal contacts brought to the tips); so is any
-    escape after which a finger reaches its goal only through another finger
+    pose is asked again for part of it (`REGAIT_REACH`), as `final_rounds.regait` does. With method
+    "sd", an escape that brings the object less than `PlannerOptions.sd_escape_gain` closer to the
+    desired pose is followed by a reposing towards the SVD target (the goal contacts brought to the
+    tips); so is any escape after which a finger reaches its goal only through another finger
     (`stall_report.reached_through_others`): the generated sphere pair of seed 19 (SD) stalled with the
     middle held off its goal by the index while the escapes turned the object about 0.5° at a time."""
     n_steps, gain = len(run.steps), run.options.sd_escape_gain
     fallback = escape and run.options.method == "sd" and gain is not None
     before = pose_distance(run.T_palm_object, run.T_palm_object_goal, run.obj) if fallback else 0.0
-    for reach in _REGAIT_REACH if escape else (1.0,):
+    for reach in REGAIT_REACH if escape else (1.0,):
         run.repose(escape=escape, reach=reach)
         if len(run.steps) > n_steps:
             break
@@ -495,51 +480,6 @@ def _repose(run: _Run, escape: bool) -> None:
             run.hand, run.q, run.T_palm_object, run.goal_tips, run.steps[-1].contact_error, run.options.zeta,
             run.q_goal):
         run.repose(escape=False, contacts_target=True)
-
-
-def _regait(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
-    """After final moves that stopped short of the desired pose (`outcome`: the next would take a
-    contact beyond ζ, or was refused), one reposing towards it (`_Run.repose`, accepted when it brings
-    the object closer, wherever the contacts go); True when it was accepted and iterations remain, so
-    that gait rounds bring the contacts back (`PlannerOptions.final_regait`). Not when the object is
-    within the pose tolerance already (the plan is converged; re-gaiting might end it elsewhere)."""
-    if not (options.final_regait and outcome.stop in _REGAIT_STOPS and run.iterations < options.max_iters):
-        return False
-    if decide_status(run, options, outcome)[0] == "converged":
-        return False
-    n_steps = len(run.steps)
-    for reach in _REGAIT_REACH:  # a shorter reposing where a longer one is refused
-        run.repose(escape=True, reach=reach)
-        if len(run.steps) > n_steps:
-            break
-    run.iterations += 1  # an iteration of its own: the loop ends within max_iters
-    run.errors.append(float(np.mean(run.steps[-1].contact_error)))
-    return len(run.steps) > n_steps
-
-
-def _polish(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
-    """After final moves that stopped short of the desired pose (`outcome`) with the contacts within ζ
-    but not at their goals, one more gait round (OPT1 to the goal contacts at the current pose); True
-    when it moved a finger and iterations remain, so that the final moves are tried again from grasps
-    nearer the desired one (`PlannerOptions.final_polish`)."""
-    if outcome.stop in _NO_POLISH_STOPS or run.iterations >= options.max_iters:
-        return False
-    if run.largest_error() <= options.skip_tol:
-        return False
-    n_steps = len(run.steps)
-    run.gait_round()
-    run.iterations += 1  # an iteration of its own: the loop ends within max_iters
-    run.errors.append(float(np.mean(run.steps[-1].contact_error)))
-    return len(run.steps) > n_steps
-
-
-_NO_POLISH_STOPS = ("reached", "not_run", "time_budget", "contact_drift")
-"""Final-move stops after which `_polish` does not run: the pose is reached, nothing was tried, or the
-contacts rolled away from their goals (`_regait`'s case: a reposing towards the pose first)."""
-_REGAIT_REACH = (1.0, 0.5, 0.25)
-"""Parts of the way to the desired pose `_regait`'s reposing tries, longest first."""
-_REGAIT_STOPS = ("contact_drift", "rejected", "unrealisable", "uncertified", "no_gain")
-"""Final-move stops after which `_regait` tries a reposing towards the desired pose."""
 
 
 def _finish(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,

@@ -69,11 +69,11 @@ class PlannerOptions:
     than ζ from its goal, as rolling tips carry their contacts along, `InGraspOptions.rolling`, or it was
     refused), repose towards the desired pose anyway (accepted when it brings the object closer) and go
     on with gait rounds, which bring the contacts back, then try the final moves again (within
-    `max_iters`; `planner._regait`). False: stop there."""
+    `max_iters`; `final_rounds.regait`). False: stop there."""
     final_polish: int = 2
     """When the final moves stop short of the desired pose with the contacts within ζ but not at their
     goals, this many more gait rounds (each followed by the final moves again) bring the contacts to
-    their goals first (`planner._polish`); a grasp nearer the desired one leaves the final moves less in
+    their goals first (`final_rounds.polish`); a grasp nearer the desired one leaves the final moves less in
     their way (its joints, the fingers' self-clearance). Not after a contact drift (`final_regait`'s
     case). 0: none."""
     final_reposture: int = 3
@@ -121,11 +121,13 @@ class PlannerOptions:
     to the paper: the workspaces' target cannot pull a goal that is inside a finger's workspace hull but
     out of its reach, and the desired pose can be blocked by the grasp on the way (the generated cup pair
     of seed 4 stalled so with SD, its escapes creeping < 1 mm per iteration; it converges with it)."""
-    free_after: int | None = 5
+    free_after: int | None = 9
     """After this many iterations without progress, a finger beyond ζ whose goal is out of its reach or
     reached only with a link in the object, and which `long_gait` and `make_way` did not move, has the
     object reposed towards a few other poses until its goal is within reach cleanly, then takes a gait
-    (`free_finger`; once per stall; an addition to the paper). None: never."""
+    (`free_finger`; once per stall; an addition to the paper). As the plan's last resort before it ends
+    short of the desired pose, a re-posture round searches so too for a finger whose goal posture is
+    obstructed (`final_rounds.free_postures`, `reposture.posture_obstruction`). None: neither."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)
@@ -233,6 +235,9 @@ def input_problem(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> 
         return "zeta and eta must be positive, beta and max_iters non-negative"
     if any(c is not None and not c >= 0 for c in (gait.self_clearance, in_grasp.self_clearance)):
         return "self_clearance must be non-negative or None (no self-collision constraints)"
+    free_after = options.free_after
+    if free_after is not None and not (isinstance(free_after, int) and free_after >= 0):
+        return f"free_after must be a non-negative number of iterations or None, got {options.free_after!r}"
     if options.sd_escape_gain is not None and not options.sd_escape_gain >= 0:
         return f"sd_escape_gain must be non-negative (m) or None, got {options.sd_escape_gain}"
     return grasp0.inconsistency("grasp0")

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from regrasp_casadi.final_moves import FinalMoves, aimed_moves, decide_status, pose_distance, run_final_moves
+from regrasp_casadi.final_rounds import regait
 from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.grasp_metrics import pose_error
 from regrasp_casadi.in_grasp import InGraspOptions
-from regrasp_casadi.planner import PlannerOptions, _regait, plan_regrasp
+from regrasp_casadi.planner import PlannerOptions, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.transforms import interpolate_pose, make_T, rot_axis_angle, transform_points
 from regrasp_casadi.verify import verify
@@ -263,14 +264,14 @@ def test_a_move_that_leaves_the_pose_tolerance_is_not_accepted(start_mm, accepte
 
 @pytest.mark.parametrize("position_mm, regaits", [(1.0, False), (3.0, True)])
 def test_no_regait_from_within_the_pose_tolerance(position_mm, regaits):
-    """`planner._regait` (a reposing towards the desired pose after refused final moves) is not tried
+    """`final_rounds.regait` (a reposing towards the desired pose after refused final moves) is not tried
     when the object is within the pose tolerance: the plan is converged there."""
     run = _Run(_off_goal(position_mm, 1.0), T_GOAL)
     asked = []
     run.repose = lambda **kw: asked.append(kw)  # a reposing that is always refused (no step)
     run.steps, run.errors = [SimpleNamespace(contact_error=np.zeros(3))], []
     out = FinalMoves("rejected", 0, (pose_distance(run.T_palm_object, T_GOAL, run.obj),))
-    assert not _regait(run, PlannerOptions(), out)
+    assert not regait(run, PlannerOptions(), out)
     assert bool(asked) is regaits
 
 

@@ -1,0 +1,145 @@
+"""Freeing a finger (`free_finger`): a stalled finger whose goal is reached only with a link in the object
+has the object reposed until its goal is reached cleanly, then takes a gait. On the generated bowl pair
+of seed 7 (SD, paper planner), which stalled with the thumb 28 mm from its goal, reached only with a link
+in the bowl; and the re-posture gaits' search on the bowl pair of seed 19 (SVD).
+
+References: yourdfpy's forward kinematics for the collision-sphere centres, trimesh's exact signed
+distance and closest points, a closed-form rotation angle, the plan's `verify`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from sphere_gaps import finger_spheres
+
+from regrasp_casadi.free_finger import FREE_SHIFT, FREE_TURN, free_finger, freeing_poses
+from regrasp_casadi.planner import NLPCache, PlannerOptions, _Run, plan_regrasp
+from regrasp_casadi.problem import RegraspProblem
+from regrasp_casadi.stall_report import REACH_TOL, reach_obstruction
+from regrasp_casadi.tip_ik import finger_reach_ik
+from regrasp_casadi.verify import verify
+
+DATA = Path(__file__).resolve().parent / "data"
+
+
+@pytest.fixture(scope="module")
+def stalled():
+    return RegraspProblem.load(DATA / "bowl_thumb_link_in_the_bowl.yaml")
+
+
+def _link_depth_reference(problem, q, T, finger: str) -> float:
+    """The least distance (m, < 0 inside) of `finger`'s collision spheres (yourdfpy FK) to the object
+    (trimesh's exact signed distance, positive inside)."""
+    centres, radii = finger_spheres(problem.hand, q, finger)
+    centres_object = (centres - T[:3, 3]) @ T[:3, :3]
+    return float(np.min(-trimesh.proximity.signed_distance(problem.obj.mesh, centres_object) - radii))
+
+
+def _goal_reach(problem, q, T, finger: str):
+    r = problem.hand.fingers.index(finger)
+    goal = problem.grasp_goal.tip_centers_object[r]
+    return finger_reach_ik(problem.hand, q, finger, T[:3, :3] @ goal + T[:3, 3], [problem.grasp_goal.q],
+                           tol=REACH_TOL)
+
+
+def test_the_poses_are_the_goal_then_turns_and_shifts_about_each_palm_axis():
+    rng = np.random.default_rng(3)
+    R0 = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    R0 *= np.sign(np.linalg.det(R0))  # a rotation
+    T0, T_goal = np.eye(4), np.eye(4)
+    T0[:3, :3], T0[:3, 3] = R0, [0.1, -0.02, 0.03]
+    T_goal[:3, 3] = [0.09, 0.0, 0.05]
+    poses = freeing_poses(T0, T_goal)
+    np.testing.assert_array_equal(poses[0], T_goal)
+    turned, shifted = set(), set()
+    for T in poses[1:]:
+        dR = T[:3, :3] @ R0.T
+        angle = np.arccos(np.clip((np.trace(dR) - 1.0) / 2.0, -1.0, 1.0))
+        axis = np.array([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]])
+        if angle > 1e-9:  # a turn about a palm axis, the position kept
+            np.testing.assert_allclose(T[:3, 3], T0[:3, 3], atol=1e-12)
+            assert angle == pytest.approx(FREE_TURN, abs=1e-9)
+            k = int(np.argmax(np.abs(axis)))
+            np.testing.assert_allclose(np.delete(axis, k), 0.0, atol=1e-9)
+            turned.add((k, float(np.sign(axis[k]))))
+        else:  # a shift along a palm axis, the orientation kept
+            shift = T[:3, 3] - T0[:3, 3]
+            k = int(np.argmax(np.abs(shift)))
+            assert abs(shift[k]) == pytest.approx(FREE_SHIFT, abs=1e-12)
+            np.testing.assert_allclose(np.delete(shift, k), 0.0, atol=1e-12)
+            shifted.add((k, float(np.sign(shift[k]))))
+    assert turned == shifted == {(k, s) for k in range(3) for s in (-1.0, 1.0)}
+
+
+def test_the_obstruction_names_a_link_in_the_bowl_as_the_references_see_it(stalled):
+    g0, hand = stalled.grasp0, stalled.hand
+    q, T = np.asarray(g0.q, float), np.asarray(g0.T_palm_object, float)
+    thumb = hand.fingers.index("thumb")
+    why = reach_obstruction(hand, stalled.obj, q, T, stalled.grasp_goal.tip_centers_object[thumb], "thumb",
+                            stalled.grasp_goal.q)
+    q_reach, e = _goal_reach(stalled, q, T, "thumb")
+    assert np.linalg.norm(e) <= REACH_TOL
+    assert why == "object" and _link_depth_reference(stalled, q_reach, T, "thumb") < -5e-4
+
+
+def test_the_obstruction_is_none_at_the_goal_grasp_and_reach_for_a_goal_a_metre_away(stalled):
+    goal, hand = stalled.grasp_goal, stalled.hand
+    q, T = np.asarray(goal.q, float), np.asarray(goal.T_palm_object, float)
+    for r, finger in enumerate(hand.fingers):
+        assert reach_obstruction(hand, stalled.obj, q, T, goal.tip_centers_object[r], finger, goal.q) == ""
+    far = goal.tip_centers_object[0] + np.array([1.0, 0.0, 0.0])
+    assert reach_obstruction(hand, stalled.obj, q, T, far, hand.fingers[0], goal.q) == "reach"
+
+
+def test_the_bowl_is_reposed_until_the_thumb_reaches_its_goal_cleanly_then_the_thumb_moves(stalled):
+    hand, goal = stalled.hand, stalled.grasp_goal
+    options = PlannerOptions(method="sd", stability="none")
+    run = _Run(stalled.grasp0, goal, options, NLPCache(max_size=8))
+    thumb = hand.fingers.index("thumb")
+    error_before = run.steps[-1].contact_error[thumb]
+    n_steps = len(run.steps)
+    assert free_finger(run, "thumb")
+    added = run.steps[n_steps:]
+    assert [s.kind for s in added[:-1]] == ["repose"] * (len(added) - 1) and len(added) >= 2
+    assert added[-1].kind == "gait" and added[-1].finger == "thumb"
+    assert all(s.path is not None and s.path.ok for s in added)
+    # at the pose the gait was taken from, the thumb's goal IK is clear of the bowl (references)
+    T = added[-2].T_palm_object
+    q_reach, e = _goal_reach(stalled, added[-2].q, T, "thumb")
+    assert np.linalg.norm(e) <= REACH_TOL and _link_depth_reference(stalled, q_reach, T, "thumb") >= -1e-4
+    # the thumb's contact (trimesh's closest point) is nearer its goal than at the stall
+    tip = (hand.tip_positions(added[-1].q)[thumb] - T[:3, 3]) @ T[:3, :3]
+    (contact,), (distance,), _ = trimesh.proximity.closest_point(stalled.obj.mesh, tip[None])
+    assert abs(distance - hand.tip_radius) <= 5e-4
+    assert np.linalg.norm(contact - goal.contacts_object[thumb]) < error_before - 5e-3
+
+
+def test_nothing_is_reposed_for_a_finger_at_its_goal(stalled):
+    run = _Run(stalled.grasp0, stalled.grasp_goal, PlannerOptions(method="sd", stability="none"),
+               NLPCache(max_size=8))
+    nearest = int(np.argmin(run.steps[-1].contact_error))
+    assert run.steps[-1].contact_error[nearest] < 1e-3
+    n_steps, T = len(run.steps), run.T_palm_object.copy()
+    assert not free_finger(run, run.fingers[nearest])
+    assert len(run.steps) == n_steps
+    np.testing.assert_array_equal(run.T_palm_object, T)
+
+
+def test_free_after_must_be_a_count_or_none(stalled):
+    plan = plan_regrasp(stalled.grasp0, stalled.grasp_goal, stability="none", free_after=-1)
+    assert plan.status == "invalid_input" and "free_after" in plan.status_detail
+
+
+@pytest.mark.slow  # four plans of the bowl: in the slow run
+@pytest.mark.parametrize(("pair_file", "method"), [("bowl_pair_seed7.yaml", "sd"),
+                                                   ("bowl_pair_seed19.yaml", "svd")])
+def test_the_pair_converges_with_the_search_and_not_without(pair_file, method):
+    pair = RegraspProblem.load(DATA / pair_file)
+    plan = plan_regrasp(pair.grasp0, pair.grasp_goal, method=method, stability="none")
+    assert plan.status == "converged", plan.status_detail
+    assert verify(plan).ok
+    without = plan_regrasp(pair.grasp0, pair.grasp_goal, method=method, stability="none", free_after=None)
+    assert without.status != "converged"
