@@ -93,11 +93,12 @@ REGAIT_STOPS = ("contact_drift", "rejected", "unrealisable", "uncertified", "no_
 
 
 def free_postures(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
-    """The plan's last resort before it ends short of the desired pose: a re-posture round in which a
-    finger whose goal posture is obstructed has the object reposed for it first (`reposture_round` with
-    `freeing`); True when it moved a finger. Not when the plan is converged, `free_after` is None, or
-    no iterations remain."""
-    if options.free_after is None or run.iterations >= options.max_iters:
+    """When the re-posture rounds move no finger (`EndRounds.next`, once per plan): a re-posture round in
+    which a finger whose goal posture is obstructed has the object reposed for it first
+    (`reposture_round` with `freeing`); True when it moved a finger. Not when the plan is converged,
+    `free_after` is None, stability is on (the search runs without it only, as `make_way` does), or no
+    iterations remain."""
+    if options.free_after is None or run.holding is not None or run.iterations >= options.max_iters:
         return False
     if decide_status(run, options, outcome)[0] == "converged":
         return False

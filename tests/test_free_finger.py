@@ -15,11 +15,14 @@ import pytest
 import trimesh
 from sphere_gaps import finger_spheres
 
+from regrasp_casadi.final_moves import FinalMoves
+from regrasp_casadi.final_rounds import EndRounds, Fallback
 from regrasp_casadi.free_finger import FREE_SHIFT, FREE_TURN, free_finger, freeing_poses
 from regrasp_casadi.planner import NLPCache, PlannerOptions, _Run, plan_regrasp
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.stall_report import REACH_TOL, reach_obstruction
 from regrasp_casadi.tip_ik import finger_reach_ik
+from regrasp_casadi.transforms import make_T
 from regrasp_casadi.verify import verify
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -133,7 +136,29 @@ def test_free_after_must_be_a_count_or_none(stalled):
     assert plan.status == "invalid_input" and "free_after" in plan.status_detail
 
 
-@pytest.mark.slow  # four plans of the bowl: in the slow run
+def test_undoing_the_freeing_round_puts_the_run_back(stalled):
+    run = _Run(stalled.grasp0, stalled.grasp_goal, PlannerOptions(method="sd", stability="none"),
+               NLPCache(max_size=8))
+    rounds = EndRounds()
+    q0, T0, n_steps = run.q.copy(), run.T_palm_object.copy(), len(run.steps)
+    outcome = FinalMoves("no_gain", 0, ())
+    rounds.branch = (Fallback(n_steps, q0, T0, outcome, run.iterations), 1, 2)
+    rounds.polished, rounds.repostured, rounds.freed = 2, 3, 1
+    for _ in range(3):  # the branch's steps and iterations
+        run.q = run.q + 0.01
+        run.T_palm_object = run.T_palm_object @ make_T(np.eye(3), [0.001, 0.0, 0.0])
+        run.add_step("repose", None, "", 0.0)
+        run.iterations += 1
+        run.errors.append(0.0)
+    assert rounds.undo_branch(run)
+    assert len(run.steps) == n_steps and run.iterations == 0 and len(run.errors) == 1
+    np.testing.assert_array_equal(run.q, q0)
+    np.testing.assert_array_equal(run.T_palm_object, T0)
+    assert (rounds.polished, rounds.repostured, rounds.freed, rounds.branch) == (1, 2, 1, None)
+    assert not rounds.undo_branch(run)  # once
+
+
+@pytest.mark.slow  # five plans of the bowl and the flat tool: in the slow run
 @pytest.mark.parametrize(("pair_file", "method"), [("bowl_pair_seed7.yaml", "sd"),
                                                    ("bowl_pair_seed19.yaml", "svd")])
 def test_the_pair_converges_with_the_search_and_not_without(pair_file, method):
@@ -143,3 +168,13 @@ def test_the_pair_converges_with_the_search_and_not_without(pair_file, method):
     assert verify(plan).ok
     without = plan_regrasp(pair.grasp0, pair.grasp_goal, method=method, stability="none", free_after=None)
     assert without.status != "converged"
+
+
+@pytest.mark.slow
+def test_a_freeing_round_that_leads_nowhere_is_undone():
+    """The flat tool pair of seed 8 (SVD) stalled after its freeing round when the round was kept; with
+    the round undone, the plan goes on by re-gaiting and converges."""
+    pair = RegraspProblem.load(DATA / "flat_tool_pair_seed8.yaml")
+    plan = plan_regrasp(pair.grasp0, pair.grasp_goal, method="svd", stability="none")
+    assert plan.status == "converged", plan.status_detail
+    assert verify(plan).ok

@@ -74,10 +74,10 @@ def test_the_final_moves_reach_the_pose_once_the_bent_fingers_are_put_back(probl
 
 @pytest.mark.slow  # two plans of the mug: in the slow run
 def test_the_stalled_plan_converges_with_reposture_and_not_without(problem):
-    """The planner from the stalled state, `final_rounds.polish` off (it runs before the re-posture rounds; from
-    this state its two gait rounds move the index and the thumb and leave the ring's re-posture gait
-    infeasible, the plan ending 2.9 mm / 1.8° from the pose; the whole pair's plan, `objects.py`'s mug
-    seed 9 with svd, converges with the default options)."""
+    """The planner from the stalled state, `final_rounds.polish` off (it runs before the re-posture
+    rounds; from this state its two gait rounds move the index and the thumb and leave the ring's
+    re-posture gait infeasible, the plan ending 2.9 mm / 1.8° from the pose; the whole pair's plan,
+    `objects.py`'s mug seed 9 with svd, converges with the default options)."""
     g0, goal = problem.grasp0, problem.grasp_goal
     without = plan_regrasp(g0, goal, method="svd", stability="none", final_reposture=0, final_polish=0)
     assert without.status == "pose_not_reached", without.status_detail
