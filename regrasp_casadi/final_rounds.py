@@ -1,8 +1,9 @@
 """The rounds of a plan's end, after the final moves stopped short of the desired pose (`planner._iterate`):
 one more gait round to bring the contacts to their goals (`polish`), a reposing towards the desired pose
-and gait rounds from there (`regait`, with the run's state to fall back to, `Fallback`), and, once,
-when the re-posture rounds move no finger, a re-posture round with the object reposed for a finger whose
-goal posture is obstructed (`free_postures`), undone when the plan then does not converge (`EndRounds`).
+and gait rounds from there (`regait`, with the run's state to fall back to, `Fallback`), and, for a plan
+that does not converge so, a re-posture round with the object reposed for a finger whose goal posture
+is obstructed (`free_postures`), made from where the re-posture rounds first moved no finger
+(`EndRounds`).
 
     >>> if polish(run, options, outcome): ...      # run: the planner's `_Run`; outcome: its final moves'
 """
@@ -93,11 +94,11 @@ REGAIT_STOPS = ("contact_drift", "rejected", "unrealisable", "uncertified", "no_
 
 
 def free_postures(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
-    """When the re-posture rounds move no finger (`EndRounds.next`, once per plan): a re-posture round in
-    which a finger whose goal posture is obstructed has the object reposed for it first
-    (`reposture_round` with `freeing`); True when it moved a finger. Not when the plan is converged,
-    `free_after` is None, stability is on (the search runs without it only, as `make_way` does), or no
-    iterations remain."""
+    """For a plan that did not converge, from where the re-posture rounds first moved no finger
+    (`EndRounds.free_from_branch`, once per plan): a re-posture round in which a finger whose goal
+    posture is obstructed has the object reposed for it first (`reposture_round` with `freeing`); True
+    when it moved a finger. Not when the plan is converged, `free_after` is None, stability is on (the
+    search runs without it only, as `make_way` does), or no iterations remain."""
     if options.free_after is None or run.holding is not None or run.iterations >= options.max_iters:
         return False
     if decide_status(run, options, outcome)[0] == "converged":
@@ -107,21 +108,24 @@ def free_postures(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bo
 
 class EndRounds:
     """The end rounds a plan has had (`polish`, `reposture_round`, `free_postures`), against their
-    limits (`PlannerOptions.final_polish`, `final_reposture`; one `free_postures`), and the grasp
-    before the `free_postures` round (`branch`): the reposings it makes move the object away from the
-    desired pose, so a plan that then does not converge goes back there and on without it
-    (`undo_branch`; measured: without the way back, the generated flat tool pair of seed 8, SVD,
-    stalled after such a round, where it converges by `regait`)."""
+    limits (`PlannerOptions.final_polish`, `final_reposture`; one `free_postures`), and the grasp where
+    the re-posture rounds first moved no finger (`branch`). A plan that does not converge goes back there
+    for the `free_postures` round (`free_from_branch`) and on; only then, because its reposings move the
+    object away from the desired pose and its search costs seconds: measured with the round made at the
+    branch itself, the generated flat tool pair of seed 8 (SVD) stalled after it where it converges by
+    `regait`, and the paper benchmark's mustard pair 3 took 11.3 s (SVD) and 13.8 s (SD) against 5.5 and
+    9.0 s."""
 
     def __init__(self) -> None:
         self.polished = self.repostured = self.freed = 0
-        self.branch: tuple[Fallback, int, int] | None = None
-        """The run's state and the polish and re-posture counts before the `free_postures` round, or
-        None."""
+        self.branch: tuple[Fallback, int, int, list] | None = None
+        """The run's state, the polish and re-posture counts and the NLPs' warm starts
+        (`_Run.warm_starts`) where the re-posture rounds first moved no finger, or None."""
 
     def next(self, run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
         """After final moves that stopped short (`outcome`): a `polish` round while they last, else a
-        re-posture round; True when it moved a finger (the final moves are tried again)."""
+        re-posture round; True when it moved a finger (the final moves are tried again). The first time
+        a re-posture round moves none, the run's state is kept as `branch`."""
         if self.polished < options.final_polish and polish(run, options, outcome):
             self.polished += 1
             return True
@@ -130,25 +134,26 @@ class EndRounds:
         if reposture_round(run, outcome):
             self.repostured += 1
             return True
-        if self.freed:
-            return False
-        self.freed = 1  # once per plan, when nothing else moved
-        branch = (Fallback(len(run.steps), run.q, run.T_palm_object, outcome, run.iterations), self.polished,
-                  self.repostured)
-        if free_postures(run, options, outcome):
-            self.repostured += 1
-            self.branch = branch
-            return True
+        if not self.freed and self.branch is None:
+            self.branch = (Fallback(len(run.steps), run.q, run.T_palm_object, outcome, run.iterations),
+                           self.polished, self.repostured, [w.saved() for w in run.warm_starts()])
         return False
 
-    def undo_branch(self, run: _Run) -> bool:
-        """Put the run back as it was before the `free_postures` round (steps, joints, object pose,
-        iterations, and these counts), that round spent; True when there was one to undo."""
-        if self.branch is None:
+    def free_from_branch(self, run: _Run, options: PlannerOptions) -> bool:
+        """Once per plan: put the run back at `branch` (steps, joints, object pose, iterations, these
+        counts and the NLPs' warm starts) and make the `free_postures` round there; True when it moved a
+        finger (the plan goes on from there), False when there is no branch or the round moved nothing
+        (the run stays at the branch)."""
+        if self.branch is None or self.freed:
             return False
-        before, self.polished, self.repostured = self.branch
-        self.branch = None
+        before, self.polished, self.repostured, warm = self.branch
+        self.branch, self.freed = None, 1
         del run.steps[before.n_steps:]
         run.q, run.T_palm_object, run.iterations = before.q, before.T_palm_object, before.iterations
         del run.errors[before.iterations + 1:]
+        for w, saved in zip(run.warm_starts(), warm, strict=True):  # the NLPs' warm starts of then
+            w.restore(saved)
+        if not free_postures(run, options, before.outcome):
+            return False
+        self.repostured += 1
         return True

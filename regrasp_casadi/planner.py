@@ -175,6 +175,11 @@ class _Run:
         return self.cache.get("in_grasp", self.hand, self.obj, (method, o),
                               self._timed(lambda: InGraspNLP(self.hand, self.obj, method, o)))
 
+    def warm_starts(self) -> list:
+        """The warm starts (`solver.WarmStart`) of the run's NLPs: the gaits', the SVD and the
+        reposing NLP's (kept and restored with a state the run goes back to, `final_rounds.EndRounds`)."""
+        return [nlp.warm_start for nlp in (*self.gait_nlps.values(), self.svd_nlp, self.repose_nlp)]
+
     def _timed(self, build: Callable[[], _NLP]) -> Callable[[], _NLP]:
         """`build`, adding its time to the run's build time (a cache hit adds nothing)."""
 
@@ -395,13 +400,22 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
 
 def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
              progress: ProgressCallback | None, stop: InterruptRequest) -> Plan:
-    """Algorithm 1's loop (`_iterate_from`); a plan that does not converge after a `free_postures`
-    round goes back to the grasp before that round and on without it (`EndRounds.undo_branch`)."""
+    """Algorithm 1's loop (`_iterate_from`); a plan that does not converge goes back to where the
+    re-posture rounds first moved no finger, for a round with the object reposed for an obstructed
+    posture (`EndRounds.free_from_branch`), and on; the plan of that try when it converges, else the
+    first plan (its timing the whole call's)."""
     rounds = EndRounds()
-    while True:
-        plan = _iterate_from(grasp0, grasp_goal, options, t_start, run, progress, stop, rounds=rounds)
-        if plan.status in ("converged", "interrupted") or not rounds.undo_branch(run):
-            return plan
+    plan = _iterate_from(grasp0, grasp_goal, options, t_start, run, progress, stop, rounds=rounds)
+    if plan.status in ("converged", "interrupted") or rounds.branch is None:
+        return plan
+    n_branch = rounds.branch[0].n_steps
+    if rounds.free_from_branch(run, options):
+        retry = _iterate_from(grasp0, grasp_goal, options, t_start, run, progress, stop, rounds=rounds)
+        if retry.status == "converged":
+            return retry
+    detail = (f"{plan.status_detail}; from step {n_branch}, a re-posture round with the object reposed for "
+              f"an obstructed posture did not lead to convergence: the plan is the one before it")
+    return replace(plan, status_detail=detail, timing=_timing(run, t_start))
 
 
 def _iterate_from(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,
@@ -505,9 +519,7 @@ def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_star
                status: str, detail: str) -> Plan:
     """The `Plan` of a run (None: no run, e.g. invalid input), with its timing and the options used."""
     hand, obj = grasp0.hand, grasp0.obj
-    timing = dict(run.timing) if run else {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0}
-    timing["total"] = time.perf_counter() - t_start
-    timing["other"] = max(0.0, timing["total"] - timing["build"] - timing["opt1"] - timing["opt2"])
+    timing = _timing(run, t_start)
     opts = options.to_dict()
     if run is not None:
         opts["gait_used"] = list(run.gait)
@@ -525,6 +537,14 @@ def _make_plan(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_star
         plan = attach_trajectories(plan, hand, obj, TrajectoryOptions(beta=gait.beta,
                                                                       self_clearance=gait.self_clearance))
     return plan
+
+
+def _timing(run: _Run | None, t_start: float) -> dict[str, float]:
+    """The run's time so far, s: NLP builds, OPT1, OPT2, the rest and the total since `t_start`."""
+    timing = dict(run.timing) if run else {"build": 0.0, "opt1": 0.0, "opt2": 0.0, "other": 0.0}
+    timing["total"] = time.perf_counter() - t_start
+    timing["other"] = max(0.0, timing["total"] - timing["build"] - timing["opt1"] - timing["opt2"])
+    return timing
 
 
 def _trajectory_context(hand: Hand, obj, options: PlannerOptions):

@@ -347,6 +347,14 @@ class WarmStart:
         """Forget the multipliers: the next solve starts cold."""
         self._lam = None
 
+    def saved(self) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """The stored multipliers (λ_x, λ_g), or None (cold), for `restore`."""
+        return self._lam
+
+    def restore(self, saved: tuple[NDArray[np.float64], NDArray[np.float64]] | None) -> None:
+        """Store the multipliers `saved` returned (the solves go on as from then)."""
+        self._lam = saved
+
     @property
     def is_warm(self) -> bool:
         """Whether the next solve starts from stored multipliers."""
