@@ -32,8 +32,9 @@ desired pose, against "pose_not_reached" 2.35 mm / 1.33°).
 A finger whose goal posture at this object pose is out of reach, has a link in the object, or is no
 nearer the goal's than its posture now (`posture_obstruction`) has the object reposed first, towards
 the desired pose or a turned or shifted pose until that posture is clear (`free_finger.reposed_until`)
-in the round `freeing` asks for (`final_rounds.free_postures`: once per plan, when the rounds move no
-finger, without stability; `PlannerOptions.free_after` None turns it off). Measured: the generated bowl
+in the round `freeing` asks for (`final_rounds.free_postures`: once, for a plan that does not converge
+without it, from where the rounds first moved no finger; without stability; `PlannerOptions.free_after`
+None turns it off). Measured: the generated bowl
 pair of seed 19 (SVD) ended "pose_not_reached" 27.5 mm / 14.1° from the desired pose, the middle's goal
 posture out of reach, the ring's and the thumb's no nearer; with that round the ring and the thumb are
 re-postured after the object's moves, and the plan converges (0.11 mm / 0.07°).
