@@ -51,7 +51,7 @@ import numpy as np
 from regrasp_casadi.certified_round import accept_gait
 from regrasp_casadi.free_finger import reposed_until
 from regrasp_casadi.make_way import move_aside
-from regrasp_casadi.stall_report import REACH_TOL, blocker, link_depth, through_others
+from regrasp_casadi.stall_report import REACH_TOL, ik_obstruction, through_others
 from regrasp_casadi.tip_ik import finger_reach_ik
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -140,15 +140,12 @@ def _freed_reposture(run: _Run, finger: str) -> bool:
 def posture_obstruction(run: _Run, finger: str, q: np.ndarray, T_palm_object: np.ndarray) -> str:
     """What keeps `finger`'s re-posture gait from the grasp (`q` (n,) rad, `T_palm_object` (4, 4)):
     "reach" (its goal out of reach from the goal grasp's joints), "object" (reached with a link in the
-    object, `stall_report.link_depth`), "finger" (through another finger, `stall_report.blocker`),
+    object), "finger" (through another finger; these three by `stall_report.ik_obstruction`),
     "posture" (the IK no nearer the goal posture by `POSTURE_GAIN`) or "" (nothing)."""
     q_init, e = _goal_posture_ik(run, finger, q, T_palm_object)
-    if float(np.linalg.norm(e)) > REACH_TOL:
-        return "reach"
-    if link_depth(run.hand, run.obj, q_init, T_palm_object, finger) < 0.0:
-        return "object"
-    if blocker(run.hand, q_init, finger) is not None:
-        return "finger"
+    why = ik_obstruction(run.hand, run.obj, q_init, e, T_palm_object, finger)
+    if why:
+        return why
     if posture_distance(run, q_init, finger) > posture_distance(run, q, finger) - POSTURE_GAIN:
         return "posture"
     return ""

@@ -131,6 +131,15 @@ def reach_obstruction(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: N
     R, t = np.asarray(T_palm_object, float)[:3, :3], np.asarray(T_palm_object, float)[:3, 3]
     goal_palm = R @ np.asarray(goal_tip_object, float) + t
     q_reach, e = finger_reach_ik(hand, np.asarray(q, float), finger, goal_palm, [q_goal], tol=REACH_TOL)
+    return ik_obstruction(hand, obj, q_reach, e, T_palm_object, finger)
+
+
+def ik_obstruction(hand: Hand, obj: ObjectModel, q_reach: NDArray, e: NDArray, T_palm_object: NDArray,
+                   finger: str) -> str:
+    """What an IK result of `finger` at its goal (`q_reach` (n,) rad, tip error `e` (3,) m; object at
+    `T_palm_object` (4, 4)) says keeps it from there: "reach" (the error above `REACH_TOL`), "object"
+    (a link in the object, `link_depth`), "finger" (another finger or the palm in the way, `blocker`) or
+    "" (nothing)."""
     if float(np.linalg.norm(e)) > REACH_TOL:
         return "reach"
     if link_depth(hand, obj, q_reach, T_palm_object, finger) < 0.0:
