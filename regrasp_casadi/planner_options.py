@@ -125,9 +125,10 @@ class PlannerOptions:
     """After this many iterations without progress, a finger beyond ζ whose goal is out of its reach or
     reached only with a link in the object, and which `long_gait` and `make_way` did not move, has the
     object reposed towards a few other poses until its goal is within reach cleanly, then takes a gait
-    (`free_finger`; once per stall; an addition to the paper). As the plan's last resort before it ends
-    short of the desired pose, a re-posture round searches so too for a finger whose goal posture is
-    obstructed (`final_rounds.free_postures`, `reposture.posture_obstruction`). None: neither."""
+    (`free_finger`; once per stall; an addition to the paper). For a plan that does not converge without
+    it, a re-posture round searches so too for a finger whose goal posture is obstructed, from where
+    the re-posture rounds first moved no finger (`final_rounds.free_postures`,
+    `reposture.posture_obstruction`). None: neither."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)
