@@ -403,7 +403,7 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
     """Algorithm 1's loop (`_iterate_from`); a plan that does not converge goes back to where the
     re-posture rounds first moved no finger, for a round with the object reposed for an obstructed
     posture (`EndRounds.free_from_branch`), and on; the plan of that try when it converges, else the
-    first plan (its timing the whole call's)."""
+    first plan (its timing and solve counts the whole call's)."""
     rounds = EndRounds()
     plan = _iterate_from(grasp0, grasp_goal, options, t_start, run, progress, stop, rounds=rounds)
     if plan.status in ("converged", "interrupted") or rounds.branch is None:
@@ -415,7 +415,9 @@ def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start:
             return retry
     detail = (f"{plan.status_detail}; from step {n_branch}, a re-posture round with the object reposed for "
               f"an obstructed posture did not lead to convergence: the plan is the one before it")
-    return replace(plan, status_detail=detail, timing=_timing(run, t_start))
+    # the whole call's time and solves, the try's included
+    return replace(plan, status_detail=detail, timing=_timing(run, t_start),
+                   options={**plan.options, "solves": dict(run.solves)})
 
 
 def _iterate_from(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,

@@ -9,6 +9,7 @@ distance and closest points, a closed-form rotation angle, the plan's `verify`."
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -160,6 +161,29 @@ def test_going_back_to_the_branch_restores_the_run_and_its_warm_starts(stalled):
     assert (rounds.polished, rounds.repostured, rounds.freed, rounds.branch) == (1, 2, 1, None)
     rounds.branch = (Fallback(n_steps, q0, T0, FinalMoves("no_gain", 0, ()), 0), 1, 2, warm)
     assert not rounds.free_from_branch(run, options) and rounds.branch is not None  # once per plan
+
+
+def test_a_plan_whose_retry_from_the_branch_fails_counts_the_retry_s_solves(stalled, monkeypatch):
+    from regrasp_casadi import planner
+
+    options = PlannerOptions(method="sd", stability="none")
+    run = _Run(stalled.grasp0, stalled.grasp_goal, options, NLPCache(max_size=8))
+    tries = []
+
+    def stalls(grasp0, grasp_goal, options, t_start, run, progress, stop, *, rounds):
+        run.solves["opt2"] += 5  # each try's solves
+        tries.append(dict(run.solves))
+        rounds.branch = (Fallback(len(run.steps), run.q, run.T_palm_object, FinalMoves("no_gain", 0, ()),
+                                  0), 0, 0, [])
+        return planner._make_plan(grasp0, grasp_goal, options, t_start, run, "stalled", "stalled")
+
+    monkeypatch.setattr(planner, "_iterate_from", stalls)
+    monkeypatch.setattr(EndRounds, "free_from_branch", lambda self, run, options: True)
+    plan = planner._iterate(stalled.grasp0, stalled.grasp_goal, options, 0.0, run, None, SimpleNamespace(
+        requested=False))
+    assert len(tries) == 2 and plan.status == "stalled"
+    assert "did not lead to convergence" in plan.status_detail
+    assert plan.options["solves"]["opt2"] == tries[1]["opt2"] == tries[0]["opt2"] + 5
 
 
 @pytest.mark.slow  # five plans of the bowl and the flat tool: in the slow run
