@@ -29,7 +29,8 @@ order. At every step:
   samples (`regrasp_casadi.verify_motion`): penetration, self-collision, joint limits, held contacts,
   slip (``motion_*``);
 * the plan's claims: a "converged" plan's last step has max contact error ≤ `zeta` and its object
-  within `pose_tol_position` / `pose_tol_rotation` of the desired pose.
+  within `pose_tol_position` / `pose_tol_rotation` of the desired pose, and each contact on the side
+  of the object its goal is on (`regrasp_casadi.verify_sides`: not across a thin wall from it).
 
 A new check is one function `check_x(ctx, step_index, step) -> list[Finding]` and one row of
 `CHECK_TABLE`.
@@ -61,6 +62,7 @@ from regrasp_casadi.self_collision_checks import check_self_collision, check_sel
 from regrasp_casadi.stability import contact_normals, torque_reference
 from regrasp_casadi.transforms import inv_T, transform_points
 from regrasp_casadi.verify_report import VerifyReport, Violation
+from regrasp_casadi.verify_sides import check_goal_sides
 from regrasp_casadi.verify_stability import (
     StabilitySetting,
     check_slide_path,
@@ -405,6 +407,7 @@ CHECK_TABLE: tuple[Check, ...] = (
     Check("motion_held_contact", motion.check_motion_held_contacts),
     Check("motion_slip", motion.check_motion_slip),
     Check("converged_claim", check_converged_claim),
+    Check("goal_side", check_goal_sides),
 )
 """Every check, in the order it runs on each step."""
 
