@@ -96,8 +96,7 @@ def _moves_until_clear(run: _Run, obstruction: Callable[[NDArray, NDArray], str]
     q, T = run.q, run.T_palm_object
     moves = []
     for _ in range(FREE_MOVES):
-        tips = (run.hand.tip_positions(q) - T[:3, 3]) @ T[:3, :3]
-        res = run.svd_nlp.solve(q, T, tips, T_target=T_target)
+        res = run.svd_nlp.solve(q, T, run.tips_object(q, T), T_target=T_target)
         run.timing["opt2"] += res.solve_time
         run.solves["opt2"] += 1
         if not res.success:
@@ -110,17 +109,12 @@ def _moves_until_clear(run: _Run, obstruction: Callable[[NDArray, NDArray], str]
 
 
 def _take(run: _Run, moves: list) -> bool:
-    """Add `moves` (OPT2 results, each from the last) as reposing steps, each once its path from the step
-    before passes its checks (`_Run.unrealisable`; stability: its certificate, `_Run.uncertified`);
-    False at the first that fails (the steps added so far stay: the caller removes them)."""
+    """Add `moves` (OPT2 results, each from the last) as reposing steps, each once its certificate and its
+    path from the step before pass (`_Run.take_repose`); False at the first that fails (the steps added
+    so far stay: the caller removes them)."""
     for res in moves:
-        bad = run.uncertified(res.q, res.T_palm_object)
-        path = None
-        if not bad:
-            bad, path = run.unrealisable(res.q, res.T_palm_object)
+        bad = run.take_repose(res)
         if bad:
             run.failures.append(f"freeing reposing at step {len(run.steps)} rejected: {bad}")
             return False
-        run.q, run.T_palm_object = res.q, res.T_palm_object
-        run.add_step("repose", None, res.status, res.solve_time, run.grasp_certificate(), path)
     return True

@@ -192,9 +192,24 @@ class _Run:
         return timed_build
 
     # ----------------------------------------------------------------------------------------- steps
-    def tips_object(self) -> NDArray:
-        """Tip-sphere centres (m, 3) of the current grasp, object frame."""
-        return (self.hand.tip_positions(self.q) - self.T_palm_object[:3, 3]) @ self.T_palm_object[:3, :3]
+    def tips_object(self, q: NDArray | None = None, T_palm_object: NDArray | None = None) -> NDArray:
+        """Tip-sphere centres (m, 3), object frame, of the current grasp, or of the hand at q (n,) rad
+        holding the object at `T_palm_object` (4, 4)."""
+        q = self.q if q is None else q
+        T = self.T_palm_object if T_palm_object is None else T_palm_object
+        return (self.hand.tip_positions(q) - T[:3, 3]) @ T[:3, :3]
+
+    def take_repose(self, res) -> str:
+        """Add the OPT2 result `res` (from the current grasp) as a reposing step once its certificate
+        (`uncertified`) and then its path from the step before (`unrealisable`) pass; "" when it was
+        taken, else why not (the run unchanged)."""
+        bad, path = self.uncertified(res.q, res.T_palm_object), None
+        if not bad:
+            bad, path = self.unrealisable(res.q, res.T_palm_object)
+        if not bad:
+            self.q, self.T_palm_object = res.q, res.T_palm_object
+            self.add_step("repose", None, res.status, res.solve_time, self.grasp_certificate(), path)
+        return bad
 
     def add_step(self, kind: str, finger: str | None, status: str, solve_time: float,
                  certificate: Certificate | None = None, path: StepPath | None = None) -> PlanStep:
@@ -335,18 +350,14 @@ class _Run:
         goal = self.T_palm_object_goal
         farther = escape and res.success and (pose_distance(res.T_palm_object, goal, self.obj)
                                               >= pose_distance(self.T_palm_object, goal, self.obj))
-        bad, path = (self.uncertified(res.q, res.T_palm_object) if res.success and not farther else ""), None
-        if res.success and not farther and not bad:
-            bad, path = self.unrealisable(res.q, res.T_palm_object)
         if farther:  # refused whatever its path: not computed
             way = "" if reach >= 1.0 else f"{reach:g} of the way "
             self.failures.append(f"reposing {way}towards the desired pose at step {len(self.steps)} would "
                                  f"not bring the object closer; the object stays")
-        elif res.success and not bad:
-            self.q, self.T_palm_object = res.q, res.T_palm_object
-            self.add_step("repose", None, res.status, res.solve_time, self.grasp_certificate(), path)
-        elif bad:  # the object stays where it is
-            self.failures.append(f"reposing at step {len(self.steps)} rejected: {bad}")
+        elif res.success:
+            bad = self.take_repose(res)
+            if bad:  # the object stays where it is
+                self.failures.append(f"reposing at step {len(self.steps)} rejected: {bad}")
         else:  # the object stays where it is
             self.failures.append(f"reposing at step {len(self.steps)} rejected by the exact checks "
                                  f"(clearance {res.min_clearance * 1e3:.3f} mm, slip "
