@@ -43,7 +43,7 @@ def _other_face(mesh: trimesh.Trimesh, contact: np.ndarray, tip: np.ndarray) -> 
 def test_a_tip_on_the_inner_top_of_the_rim_whose_goal_is_on_the_outer_top_passes(rim):
     plan, hand, obj, tips = rim
     middle = plan.fingers.index("middle")
-    (contact,), _, (face,) = trimesh.proximity.closest_point(obj.mesh, tips[[middle]])
+    (contact,), _, _ = trimesh.proximity.closest_point(obj.mesh, tips[[middle]])
     goal = plan.goal_contacts_object[middle]
     (goal_face,) = trimesh.proximity.closest_point(obj.mesh, goal[None])[2]
     n_contact = (tips[middle] - contact) / np.linalg.norm(tips[middle] - contact)
