@@ -6,8 +6,8 @@ across it on the inside, while the finger is on the wrong side of the wall, its 
 radii from where the goal grasp puts it. So a "converged" plan's last step must also have the straight
 segment from each tip centre to its goal tip centre outside the object: no deeper than `SIDE_DEPTH`
 into it, at `SIDE_SAMPLES` points (exact signed distance). The goal tip centre is the goal contact
-lifted one tip radius along the object's outward normal there (the mean normal of the mesh's faces
-within `FACE_RADIUS` of it, trimesh: both faces at an edge).
+lifted one tip radius along the object's outward normal there (`ObjectModel.surface_normals`: the face's
+normal, the angle-weighted pseudo-normal on an edge or vertex).
 
 Contacts on either side of a convex edge within ζ pass (the segment between their tip centres stays
 outside the edge while the contacts are closer to it than the tip radius), and so does a tip on the
@@ -22,8 +22,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
-from numpy.typing import NDArray
 
 from regrasp_casadi.transforms import inv_T, transform_points
 
@@ -31,27 +29,12 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.plan import PlanStep
     from regrasp_casadi.verify import Finding, VerifyContext
 
-__all__ = ["FACE_RADIUS", "SIDE_DEPTH", "SIDE_SAMPLES", "check_goal_sides", "face_normals_at"]
+__all__ = ["SIDE_DEPTH", "SIDE_SAMPLES", "check_goal_sides"]
 
 SIDE_DEPTH = 0.5e-3
 """How deep the segment from a converged tip centre to its goal tip centre may pass into the object, m."""
 SIDE_SAMPLES = 41
 """Points of that segment whose exact signed distance is taken (ends included)."""
-FACE_RADIUS = 0.5e-3
-"""Faces within this distance of a goal contact (beyond its own distance to the mesh) give its normal, m."""
-
-
-def face_normals_at(mesh: trimesh.Trimesh, p_object: NDArray) -> NDArray[np.float64]:
-    """(k, 3) outward unit normals at the surface points p_object (k, 3), object frame, m: the mean
-    normal of the faces within `FACE_RADIUS` of each point (one face inside a face, both at an edge)."""
-    triangles, normals = np.asarray(mesh.triangles, float), np.asarray(mesh.face_normals, float)
-    out = []
-    for p in np.asarray(p_object, float).reshape(-1, 3):
-        closest = trimesh.triangles.closest_point(triangles, np.repeat(p[None], len(triangles), axis=0))
-        d = np.linalg.norm(closest - p, axis=1)
-        n = normals[d <= float(np.min(d)) + FACE_RADIUS].mean(axis=0)
-        out.append(n / np.linalg.norm(n))
-    return np.array(out)
 
 
 def check_goal_sides(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding]:
@@ -64,7 +47,7 @@ def check_goal_sides(ctx: VerifyContext, k: int, step: PlanStep) -> list[Finding
         return []
     rho = float(ctx.hand.tip_radius)
     goals = np.asarray(ctx.plan.goal_contacts_object, float)
-    goal_tips = goals + rho * face_normals_at(ctx.obj.mesh, goals)
+    goal_tips = goals + rho * np.asarray(ctx.obj.surface_normals(goals), float)
     tips = transform_points(inv_T(step.T_palm_object), ctx.exact.p_palm_tips[k])
     s = np.linspace(0.0, 1.0, SIDE_SAMPLES)[None, :, None]
     segments = tips[:, None, :] + s * (goal_tips - tips)[:, None, :]  # (m, samples, 3)
