@@ -2,17 +2,19 @@
 whose contacts are within ζ to the desired object pose, and the plan's status decision.
 
 The moves are monotone: a move is accepted only when it brings the object closer to the desired pose
-(`pose_distance`, m) and keeps every contact within ζ of its goal; the loop runs until the object is
-within `final_pose_tol`, a move is rejected or gains less than `final_min_gain`, or `final_time_budget`
-seconds have passed. A plan is "converged" only when its contacts are within ζ *and* its object is within
-`pose_tol_position` / `pose_tol_rotation` of the desired pose (the paper's desired grasp
-G_d = (X_d, o_d) has both); contacts within ζ with the object elsewhere is "pose_not_reached". Once the
-object is within that tolerance, a move that would take it out is not accepted ("in_tolerance"): the
-pose distance adds translation and rotation, so a move can lower it while leaving the tolerance on one
-of them (measured: the generated mug pair of seed 9, svd, planned with a variant of the re-posture gaits,
-passed 1.8 mm / 1.8° and ended 2.5 mm / 1.2°, "pose_not_reached"). Conversely, when the moves stop with
-one of the two within its tolerance and the other not, the plan's end (`planner._finish`) makes up to
-`AIMED_MOVES` moves towards the desired value of the other alone (`aimed_moves`).
+(`pose_distance`, m) and keeps every contact within ζ of its goal; the loop runs until the object is within
+`final_pose_tol`, a move is rejected or gains less than `final_min_gain`, or its OPT2 solves have taken
+`final_max_iterations` IPOPT iterations (or `final_time_budget` seconds have passed, when it is set: a
+wall-clock bound makes a plan depend on the machine's speed, so it is off by default). A plan is "converged"
+only when its contacts are within ζ *and* its object is within `pose_tol_position` / `pose_tol_rotation` of
+the desired pose (the paper's desired grasp G_d = (X_d, o_d) has both); contacts within ζ with the object
+elsewhere is "pose_not_reached". Once the object is within that tolerance, a move that would take it out is
+not accepted ("in_tolerance"): the pose distance adds translation and rotation, so a move can lower it while
+leaving the tolerance on one of them (measured: the generated mug pair of seed 9, svd, planned with a
+variant of the re-posture gaits, passed 1.8 mm / 1.8° and ended 2.5 mm / 1.2°, "pose_not_reached").
+Conversely, when the moves stop with one of the two within its tolerance and the other not, the plan's end
+(`planner._finish`) makes up to `AIMED_MOVES` moves towards the desired value of the other alone
+(`aimed_moves`).
 
     >>> outcome = run_final_moves(run, options)      # run: the planner's `_Run`
     >>> status, detail = decide_status(run, options, outcome)
@@ -42,14 +44,17 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["FinalMoves", "run_final_moves", "aimed_moves", "decide_status", "pose_distance", "part_way"]
 
 FinalStop = Literal["reached", "small_gain", "no_gain", "in_tolerance", "rejected", "contact_drift",
-                    "uncertified", "unrealisable", "time_budget", "not_run"]
+                    "uncertified", "unrealisable", "iteration_budget", "time_budget", "not_run"]
 """Why the final moves ended: the object is within `final_pose_tol`; the last move gained less than
 `final_min_gain` (accepted) or nothing (not accepted); the object is within the plan's pose tolerance
 (`pose_tol_position` / `pose_tol_rotation`) and the move would take it out (not accepted); OPT2's exact
 checks rejected the move; the move would take a contact farther than ζ from its goal (not accepted); the
 moved grasp would have no stability certificate (`planner._Run.uncertified`; not accepted); its path from
-the last step fails its checks (`planner._Run.unrealisable`; not accepted); the time budget ran out; not
-run."""
+the last step fails its checks (`planner._Run.unrealisable`; not accepted); the OPT2 solves took
+`final_max_iterations` IPOPT iterations; the time budget (`final_time_budget`) ran out; not run."""
+
+BUDGET_STOPS = ("iteration_budget", "time_budget")
+"""Final-move stops on a budget: no more rounds follow them (`final_rounds`, `reposture`, `planner`)."""
 
 
 class FinalMoveRun(Protocol):
@@ -125,15 +130,20 @@ def run_final_moves(run: FinalMoveRun, options: PlannerOptions) -> FinalMoves:
     t_start, T_goal, zeta = time.perf_counter(), run.T_palm_object_goal, options.zeta
     distances = [pose_distance(run.T_palm_object, T_goal, run.obj)]
     stretch = _Stretch(trust=trust_region(run.svd_nlp.options))
+    iterations = 0  # IPOPT iterations of this run's OPT2 solves
     while True:
         if distances[-1] <= options.final_pose_tol:
             return FinalMoves("reached", len(distances) - 1, tuple(distances))
-        if time.perf_counter() - t_start >= options.final_time_budget:
+        if iterations >= options.final_max_iterations:
+            return FinalMoves("iteration_budget", len(distances) - 1, tuple(distances))
+        budget = options.final_time_budget
+        if budget is not None and time.perf_counter() - t_start >= budget:
             return FinalMoves("time_budget", len(distances) - 1, tuple(distances))
         T_target = stretch.target(run.T_palm_object, T_goal)
         res = run.svd_nlp.solve(run.q, run.T_palm_object, run.tips_object(), T_target=T_target)
         run.timing["opt2"] += res.solve_time
         run.solves["opt2"] += 1
+        iterations += res.iterations
         stop, note, path = _judge(run, res, distances[-1], zeta)
         if stop is None and _within(run.T_palm_object, T_goal, options) and not _within(
                 res.T_palm_object, T_goal, options):

@@ -21,7 +21,7 @@ from regrasp_casadi.in_grasp import InGraspOptions
 if TYPE_CHECKING:
     from regrasp_casadi.grasp import Grasp
 
-__all__ = ["PlannerOptions", "input_problem", "stability_problem"]
+__all__ = ["PlannerOptions", "input_problem", "number_problem", "stability_problem"]
 
 
 @dataclass(frozen=True)
@@ -82,9 +82,17 @@ class PlannerOptions:
     finger farther than `reposture.POSTURE_TOL` from the goal grasp's posture is lifted and put down on
     its goal contact in that posture (`reposture`; the final moves stall against the joint limits of a
     finger bent unlike the goal grasp's). 0: none."""
-    final_time_budget: float = 60.0
-    """Time the final in-grasp moves may take, s (as many moves as fit; each is bounded by the OPT2
-    trust region)."""
+    final_max_iterations: int = 15_000
+    """IPOPT iterations the OPT2 solves of one run of the final in-grasp moves may take (retries
+    included): a bound in work, not time, so that a plan does not depend on the machine's speed.
+    Measured on the objects table (`benchmarks/objects.py`, seeds 0–19: 240 plans, 426 runs of the final
+    moves): the most one run of a converged plan took was 9,675 iterations (the cup pair of seed 12,
+    svd: 43 s on the 2-core benchmark machine, 4.5 ms an iteration); the one plan that had stopped on
+    the 60 s wall-clock budget this replaces (the bowl pair of seed 15, sd, failing either way) made
+    13,219 in 60 s."""
+    final_time_budget: float | None = None
+    """Time one run of the final in-grasp moves may take, s; None (default): no wall-clock bound (a plan
+    that reaches it depends on the machine's speed)."""
     final_pose_tol: float = 5e-4
     """Stop the final moves when the object is this close to the desired pose, m
     (`final_moves.pose_distance`: translation plus rotation angle times the object's radius)."""
@@ -210,6 +218,28 @@ def stability_problem(options: PlannerOptions) -> str:
     return ""
 
 
+def number_problem(options: PlannerOptions) -> str:  # noqa: PLR0911
+    """Why the planner's numeric options cannot be planned with ("" when they can): a chain of checks,
+    each returning its message."""
+    gait, in_grasp = options.finger_gait, options.in_grasp
+    if not (options.zeta > 0 and gait.eta > 0 and gait.beta >= 0 and in_grasp.beta >= 0
+            and options.max_iters >= 0):
+        return "zeta and eta must be positive, beta and max_iters non-negative"
+    if any(c is not None and not c >= 0 for c in (gait.self_clearance, in_grasp.self_clearance)):
+        return "self_clearance must be non-negative or None (no self-collision constraints)"
+    free_after = options.free_after
+    if free_after is not None and not (isinstance(free_after, int) and free_after >= 0):
+        return f"free_after must be a non-negative number of iterations or None, got {options.free_after!r}"
+    budget = options.final_max_iterations
+    if not (isinstance(budget, int) and budget >= 0):
+        return f"final_max_iterations must be a non-negative number of iterations, got {budget!r}"
+    if options.final_time_budget is not None and not options.final_time_budget >= 0:
+        return f"final_time_budget must be non-negative (s) or None, got {options.final_time_budget}"
+    if options.sd_escape_gain is not None and not options.sd_escape_gain >= 0:
+        return f"sd_escape_gain must be non-negative (m) or None, got {options.sd_escape_gain}"
+    return ""
+
+
 def input_problem(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> str:  # noqa: PLR0911
     """Why the input cannot be planned ("" when it can): a chain of checks, each returning its message
     (hence the returns beyond PLR0911's limit)."""
@@ -230,15 +260,7 @@ def input_problem(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions) -> 
         unknown = [f for f in options.gait if f not in grasp0.hand.fingers]
         if unknown:
             return f"gait names unknown fingers {unknown}; the hand has {list(grasp0.hand.fingers)}"
-    gait, in_grasp = options.finger_gait, options.in_grasp
-    if not (options.zeta > 0 and gait.eta > 0 and gait.beta >= 0 and in_grasp.beta >= 0
-            and options.max_iters >= 0):
-        return "zeta and eta must be positive, beta and max_iters non-negative"
-    if any(c is not None and not c >= 0 for c in (gait.self_clearance, in_grasp.self_clearance)):
-        return "self_clearance must be non-negative or None (no self-collision constraints)"
-    free_after = options.free_after
-    if free_after is not None and not (isinstance(free_after, int) and free_after >= 0):
-        return f"free_after must be a non-negative number of iterations or None, got {options.free_after!r}"
-    if options.sd_escape_gain is not None and not options.sd_escape_gain >= 0:
-        return f"sd_escape_gain must be non-negative (m) or None, got {options.sd_escape_gain}"
+    numbers = number_problem(options)
+    if numbers:
+        return numbers
     return grasp0.inconsistency("grasp0")

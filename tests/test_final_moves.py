@@ -1,8 +1,10 @@
 """The planner's final in-grasp moves (`final_moves`): monotone towards the desired pose, stopped by the
-pose tolerance, a small gain or the time budget; "converged" only with the object at the desired pose."""
+pose tolerance, a small gain or the solve (or time) budget; "converged" only with the object at the
+desired pose."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
@@ -41,6 +43,7 @@ class _Result:
     solve_time: float = 0.0
     max_slip: float = 0.0
     min_clearance: float = 0.01
+    iterations: int = 7
 
 
 class _Mesh:
@@ -168,13 +171,29 @@ def test_no_time_budget_no_move():
     assert out.stop == "time_budget" and run.svd_nlp.calls == 0
 
 
+def test_the_iteration_budget_cuts_the_same_moves_short():
+    # the uncapped moves (7 IPOPT iterations a solve), with a refused move (a retry) among them; then every
+    # smaller budget: no solve once the budget is spent, the steps a prefix of the uncapped ones (a bound in
+    # work: the same cut on any machine)
+    full = _Run(T0, T_GOAL, rho=0.05, bad=(2,))
+    out = run_final_moves(full, PlannerOptions())
+    assert out.stop == "reached" and full.svd_nlp.calls >= 4
+    for budget in range(7 * (full.svd_nlp.calls - 1) + 1):  # (more lets the last solve run: reached)
+        run = _Run(T0, T_GOAL, rho=0.05, bad=(2,))
+        cut = run_final_moves(run, PlannerOptions(final_max_iterations=budget))
+        assert cut.stop == "iteration_budget" and run.svd_nlp.calls == math.ceil(budget / 7)
+        assert len(run.steps) == cut.moves < out.moves
+        assert all(np.array_equal(a, b) for a, b in zip(run.steps, full.steps[:cut.moves], strict=True))
+
+
 # ------------------------------------------------------------------------- the planner's status
 def _goal_at(problem, T_goal) -> Grasp:
     g0 = problem.grasp0
     return Grasp.from_contacts(g0.hand, g0.obj, g0.contacts_object, T_goal)
 
 
-@pytest.mark.parametrize("options", [{"final_move": False}, {"final_time_budget": 0.0}])
+@pytest.mark.parametrize("options", [{"final_move": False}, {"final_time_budget": 0.0},
+                                     {"final_max_iterations": 0}])
 def test_contacts_reached_pose_not_is_pose_not_reached(box_shift, options):
     g0 = box_shift.grasp0
     T_goal = np.array(g0.T_palm_object)

@@ -212,6 +212,9 @@ def test_invalid_input_is_a_status(box):
     assert plan.status == "invalid_input" and "pinky" in plan.status_detail
     plan = plan_regrasp(box.grasp0, box.grasp_goal, sd_escape_gain=-1e-3)
     assert plan.status == "invalid_input" and "sd_escape_gain" in plan.status_detail
+    for bad in ({"final_max_iterations": -1}, {"final_max_iterations": 2.5}, {"final_time_budget": -1.0}):
+        plan = plan_regrasp(box.grasp0, box.grasp_goal, **bad)
+        assert plan.status == "invalid_input" and next(iter(bad)) in plan.status_detail
 
 
 def test_plan_round_trips_through_json(box, tmp_path):
