@@ -10,13 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yourdfpy
 
 from regrasp_casadi.grasp_metrics import tip_frames
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner import PlannerOptions
 from regrasp_casadi.problem import RegraspProblem
-from regrasp_casadi.rolling_ik import Rolling, _residual, rolling_tip_ik, tip_angular_jacobian
+from regrasp_casadi.rolling_ik import Rolling, _residual, rolling_tip_ik
 from regrasp_casadi.stability import contact_normals
 from regrasp_casadi.trajectory import TrajectoryOptions, plan_trajectories
 from regrasp_casadi.transforms import interpolate_pose
@@ -44,29 +43,21 @@ def _rolling(problem) -> Rolling:
     return Rolling(p, R, n, np.zeros_like(p), hand.tip_radius)
 
 
-@pytest.mark.parametrize("seed", [0, 1])
-def test_the_tip_angular_jacobian_is_the_derivative_of_the_urdf_tip_rotations(hand, seed):
-    """Against central differences of yourdfpy's FK (another FK code): vee((R(q+h) − R(q−h)) R(q)ᵀ / 2h)
-    for every tip link and joint, and zero for the joints of the other fingers."""
-    ref = yourdfpy.URDF.load(str(hand.urdf_path), load_meshes=False, build_collision_scene_graph=False)
-
-    def rotations(q):
-        ref.update_cfg(q)
-        return np.stack([ref.get_transform(hand.tip_links[f], ref.base_link)[:3, :3] for f in hand.fingers])
-
-    q = np.random.default_rng(seed).uniform(hand.q_lower, hand.q_upper)
-    joints = np.arange(hand.n_joints)
-    J = tip_angular_jacobian(hand, q, joints)
-    R0_t, h = np.transpose(rotations(q), (0, 2, 1)), 1e-6
-    for j in joints:
-        dq = np.zeros(hand.n_joints)
-        dq[j] = h
-        D = (rotations(q + dq) - rotations(q - dq)) @ R0_t / (2 * h)  # [ω_j]×
-        omega = np.stack([D[:, 2, 1], D[:, 0, 2], D[:, 1, 0]], axis=1)
-        np.testing.assert_allclose(J[:, :, j], omega, atol=1e-7)
-    for i, finger in enumerate(hand.fingers):
-        other = np.setdiff1d(joints, hand.finger_joints[finger])
-        assert np.all(J[i][:, other] == 0.0) and np.abs(J[i]).max() > 0.5  # a unit axis per joint
+@pytest.mark.parametrize("turn", [0.0, 0.3, 1.0])
+def test_the_residual_is_the_tip_error_to_the_rolled_targets(problem, turn):
+    """The symbolic residual against the numpy one: T · `Rolling.targets` (its log of SO(3) in numpy) of
+    the tip frames, minus the tip centres; turn 0 is no rotation at all (θ = 0 exactly)."""
+    hand, g0 = problem.hand, problem.grasp0
+    q = np.asarray(g0.q) + turn * (np.asarray(problem.grasp_goal.q) - np.asarray(g0.q))
+    T = np.asarray(problem.grasp_goal.T_palm_object)
+    base = _rolling(problem)
+    roll = replace(base, offset=np.random.default_rng(1).normal(0.0, 1e-3, base.offset.shape))
+    p_palm, R_palm = tip_frames(hand, q, np.eye(4))
+    e_ref = roll.targets(T[:3, :3].T @ R_palm)[0] @ T[:3, :3].T + T[:3, 3] - p_palm
+    for rows in ([0, 1, 2, 3], [3, 1]):
+        e, _ = _residual(hand, q, T, roll, rows, np.arange(hand.n_joints))
+        np.testing.assert_allclose(e, e_ref[rows], atol=1e-12)
+    assert turn == 0.0 or np.abs(e_ref).max() > 1e-3  # a turn moves the targets
 
 
 def test_the_thumb_is_singular_for_its_centre_not_for_its_rolling_contact(problem):
@@ -80,9 +71,10 @@ def test_the_thumb_is_singular_for_its_centre_not_for_its_rolling_contact(proble
     assert np.linalg.svd(J, compute_uv=False)[-1] > 1e-3  # m/rad: the rolling contact keeps all three
 
 
-def test_the_residual_jacobian_is_the_derivative_of_the_tip_error(problem):
+@pytest.mark.parametrize("turn", [0.0, 0.3])
+def test_the_residual_jacobian_is_the_derivative_of_the_tip_error(problem, turn):
     hand, g0 = problem.hand, problem.grasp0
-    q = np.asarray(g0.q) + 0.3 * (np.asarray(problem.grasp_goal.q) - np.asarray(g0.q))  # tips turned
+    q = np.asarray(g0.q) + turn * (np.asarray(problem.grasp_goal.q) - np.asarray(g0.q))  # tips turned
     T, roll, rows = np.asarray(g0.T_palm_object), _rolling(problem), [0, 1, 2, 3]
     joints = np.arange(hand.n_joints)
     e0, J = _residual(hand, q, T, roll, rows, joints)
