@@ -1,5 +1,5 @@
 """The planner's final in-grasp moves (`final_moves`): monotone towards the desired pose, stopped by the
-pose tolerance, a small gain or the solve (or time) budget; "converged" only with the object at the
+pose tolerance, a small gain or the iteration (or time) budget; "converged" only with the object at the
 desired pose."""
 
 from __future__ import annotations

@@ -46,10 +46,11 @@ def _rolling(problem) -> Rolling:
 @pytest.mark.parametrize("turn", [0.0, 0.3, 1.0])
 def test_the_residual_is_the_tip_error_to_the_rolled_targets(problem, turn):
     """The symbolic residual against the numpy one: T · `Rolling.targets` (its log of SO(3) in numpy) of
-    the tip frames, minus the tip centres; turn 0 is no rotation at all (θ = 0 exactly)."""
+    the tip frames, minus the tip centres; turn 0 is grasp0 itself, where the tips have not turned
+    (θ = 0 up to rounding)."""
     hand, g0 = problem.hand, problem.grasp0
     q = np.asarray(g0.q) + turn * (np.asarray(problem.grasp_goal.q) - np.asarray(g0.q))
-    T = np.asarray(problem.grasp_goal.T_palm_object)
+    T = interpolate_pose(g0.T_palm_object, problem.grasp_goal.T_palm_object, turn)
     base = _rolling(problem)
     roll = replace(base, offset=np.random.default_rng(1).normal(0.0, 1e-3, base.offset.shape))
     p_palm, R_palm = tip_frames(hand, q, np.eye(4))
