@@ -54,7 +54,10 @@ the last step fails its checks (`planner._Run.unrealisable`; not accepted); the 
 `final_max_iterations` IPOPT iterations; the time budget (`final_time_budget`) ran out; not run."""
 
 BUDGET_STOPS = ("iteration_budget", "time_budget")
-"""Final-move stops on a budget: no more rounds follow them (`final_rounds`, `reposture`, `planner`)."""
+"""Final-move stops on a budget."""
+SETTLED_STOPS = ("reached", "not_run", *BUDGET_STOPS)
+"""Final-move stops after which nothing more is tried: the pose is reached, no move was tried, or a
+budget ran out (no polish, re-posture or aimed moves: `final_rounds`, `reposture`, `planner._finish`)."""
 
 
 class FinalMoveRun(Protocol):

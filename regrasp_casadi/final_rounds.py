@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from regrasp_casadi.final_moves import BUDGET_STOPS, FinalMoves, decide_status
+from regrasp_casadi.final_moves import SETTLED_STOPS, FinalMoves, decide_status
 from regrasp_casadi.reposture import reposture_round
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -84,7 +84,7 @@ def polish(run: _Run, options: PlannerOptions, outcome: FinalMoves) -> bool:
     return len(run.steps) > n_steps
 
 
-NO_POLISH_STOPS = ("reached", "not_run", *BUDGET_STOPS, "contact_drift")
+NO_POLISH_STOPS = (*SETTLED_STOPS, "contact_drift")
 """Final-move stops after which `polish` does not run: the pose is reached, nothing was tried, a budget
 ran out, or the contacts rolled away from their goals (`regait`'s case: a reposing towards the pose first)."""
 REGAIT_REACH = (1.0, 0.5, 0.25)

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from regrasp_casadi.certificates import Certificate
 from regrasp_casadi.certified_round import accept_gait, certified_round
 from regrasp_casadi.final_moves import (
-    BUDGET_STOPS,
+    SETTLED_STOPS,
     FinalMoves,
     aimed_moves,
     decide_status,
@@ -521,7 +521,7 @@ def _finish(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: 
         outcome = FinalMoves("not_run", 0, ())
         if options.final_move and run.largest_error() <= options.zeta:
             outcome = run_final_moves(run, options)
-    if outcome.stop not in ("reached", "not_run", *BUDGET_STOPS) and run.largest_error() <= options.zeta:
+    if outcome.stop not in SETTLED_STOPS and run.largest_error() <= options.zeta:
         outcome = aimed_moves(run, options, outcome)  # one pose component within tolerance, the other not
     status, detail = decide_status(run, options, outcome)
     if status == "pose_not_reached":

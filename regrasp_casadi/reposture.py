@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from regrasp_casadi.certified_round import accept_gait
-from regrasp_casadi.final_moves import BUDGET_STOPS
+from regrasp_casadi.final_moves import SETTLED_STOPS
 from regrasp_casadi.free_finger import reposed_until
 from regrasp_casadi.make_way import move_aside
 from regrasp_casadi.stall_report import REACH_TOL, ik_obstruction, through_others
@@ -81,7 +81,7 @@ def reposture_round(run: _Run, outcome: FinalMoves, freeing: bool = False) -> bo
     object reposed for it first where its goal posture is obstructed when `freeing` (see the module
     docstring); True when one was taken (an iteration of the run's own: the planner's loop ends
     within `max_iters`). Nothing is tried without the goal grasp's joints or iterations left."""
-    if (outcome.stop in ("reached", "not_run", *BUDGET_STOPS) or run.q_goal is None
+    if (outcome.stop in SETTLED_STOPS or run.q_goal is None
             or run.iterations >= run.options.max_iters):
         return False
     far = {f: posture_distance(run, run.q, f) for f in run.fingers}

@@ -62,41 +62,35 @@ class Rolling:
         return self.p_from + self.radius * np.cross(theta, self.normals) + self.offset, theta
 
 
-_RESIDUALS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-"""Hand -> its `_residual_function`, built once per hand."""
-
 _TINY = 1e-30
 """Added to ‖v‖² in the symbolic log of SO(3) (v = sin θ · axis): its square root and θ/sin θ stay
 differentiable at θ = 0 (no rotation, every path's first knot); θ changes by < 1e-15 rad."""
 
 
 def _residual_function(hand: Hand) -> ca.Function:
-    """The rolling tips' error and its Jacobian in one call, exact (CasADi, `cse`), built once per hand:
+    """The rolling tips' error and its Jacobian in one call, exact (CasADi, `cse`; built once per hand, by
+    its `_ResidualBuffers`):
     (q (n,), R (3, 3) and t (3,) of T_palm_object, p_from (3, m), R_from (3, 3m) side by side, normals
     (3, m), offset (3, m), ρ) -> e (3, m) = T p(q) − tip(q), palm frame, m, and J (3m, n) = −de/dq, with
     p(q) = p_from + ρ θ(q) × n + offset (object frame), θ(q) = log(Rᵀ R_tip(q) R_fromᵀ) (`Rolling`)."""
-    fn = _RESIDUALS.get(hand)
-    if fn is None:
-        m = len(hand.fingers)
-        q, R, t = ca.SX.sym("q", hand.n_joints), ca.SX.sym("R", 3, 3), ca.SX.sym("t", 3)
-        p_from, R_from = ca.SX.sym("p_from", 3, m), ca.SX.sym("R_from", 3, 3 * m)
-        normals, offset, radius = ca.SX.sym("normals", 3, m), ca.SX.sym("offset", 3, m), ca.SX.sym("radius")
-        R_tips, p_tips = hand.tip_rotations_function()(q), hand.tip_positions_function()(q)
-        errors = []
-        for i in range(m):
-            M = R.T @ R_tips[:, 3 * i : 3 * i + 3] @ R_from[:, 3 * i : 3 * i + 3].T  # turned since the start
-            v = 0.5 * ca.vertcat(M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1])  # sin θ · axis
-            sin_theta = ca.sqrt(ca.dot(v, v) + _TINY)
-            theta = v * ca.atan2(sin_theta, 0.5 * (ca.trace(M) - 1.0)) / sin_theta
-            p_object = p_from[:, i] + radius * ca.cross(theta, normals[:, i]) + offset[:, i]
-            errors.append(R @ p_object + t - p_tips[:, i])
-        e = ca.horzcat(*errors)
-        J = -ca.jacobian(ca.vec(e), q)
-        names = ["q", "R", "t", "p_from", "R_from", "normals", "offset", "radius"]
-        fn = ca.Function("rolling_residual", [q, R, t, p_from, R_from, normals, offset, radius],
-                         [e, ca.densify(J)], names, ["e", "J"], {"cse": True})
-        _RESIDUALS[hand] = fn
-    return fn
+    m = len(hand.fingers)
+    q, R, t = ca.SX.sym("q", hand.n_joints), ca.SX.sym("R", 3, 3), ca.SX.sym("t", 3)
+    p_from, R_from = ca.SX.sym("p_from", 3, m), ca.SX.sym("R_from", 3, 3 * m)
+    normals, offset, radius = ca.SX.sym("normals", 3, m), ca.SX.sym("offset", 3, m), ca.SX.sym("radius")
+    R_tips, p_tips = hand.tip_rotations_function()(q), hand.tip_positions_function()(q)
+    errors = []
+    for i in range(m):
+        M = R.T @ R_tips[:, 3 * i : 3 * i + 3] @ R_from[:, 3 * i : 3 * i + 3].T  # turned since the start
+        v = 0.5 * ca.vertcat(M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1])  # sin θ · axis
+        sin_theta = ca.sqrt(ca.dot(v, v) + _TINY)
+        theta = v * ca.atan2(sin_theta, 0.5 * (ca.trace(M) - 1.0)) / sin_theta
+        p_object = p_from[:, i] + radius * ca.cross(theta, normals[:, i]) + offset[:, i]
+        errors.append(R @ p_object + t - p_tips[:, i])
+    e = ca.horzcat(*errors)
+    J = -ca.jacobian(ca.vec(e), q)
+    names = ["q", "R", "t", "p_from", "R_from", "normals", "offset", "radius"]
+    return ca.Function("rolling_residual", [q, R, t, p_from, R_from, normals, offset, radius],
+                       [e, ca.densify(J)], names, ["e", "J"], {"cse": True})
 
 
 class _ResidualBuffers:
@@ -109,7 +103,8 @@ class _ResidualBuffers:
         self.args = [np.zeros(n), np.zeros((3, 3)), np.zeros(3), np.zeros((m, 3)), np.zeros((3 * m, 3)),
                      np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(1)]
         self.e, self.J = np.zeros((m, 3)), np.zeros((n, 3 * m))
-        self._buf, self._evaluate = _residual_function(hand).buffer()
+        self._fn = _residual_function(hand)  # (held: the buffer evaluates it)
+        self._buf, self._evaluate = self._fn.buffer()
         for i, arg in enumerate(self.args):
             self._buf.set_arg(i, memoryview(arg))
         self._buf.set_res(0, memoryview(self.e))
