@@ -26,6 +26,7 @@ import numpy as np
 
 from regrasp_casadi.certified_round import accept_gait
 from regrasp_casadi.stall_report import REACH_TOL
+from regrasp_casadi.surface_route import nearer_goal
 from regrasp_casadi.tip_ik import finger_reach_ik
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -37,7 +38,8 @@ __all__ = ["long_gait", "reach_at_goal"]
 def long_gait(run: _Run, finger: str) -> bool:
     """One gait of `finger` towards its goal tip centre, started at its IK there at the current object
     pose, else from the joints a part of the way to that IK (see the module docstring); True when a gait
-    that brings its contact closer to its goal is taken. Not tried (False) when the goal is out of the
+    that brings its contact closer to its goal is taken (along the surface where the finger takes a
+    surface route: `surface_route.nearer_goal`). Not tried (False) when the goal is out of the
     finger's reach at this pose (its IK, `tip_ik.finger_reach_ik`, ends farther than
     `stall_report.REACH_TOL`)."""
     r, T = run.fingers.index(finger), run.T_palm_object
@@ -55,9 +57,7 @@ def long_gait(run: _Run, finger: str) -> bool:
         res = run.gait_nlps[finger].solve(run.q, T, goal_object, q_init=q_init)
         run.timing["opt1"] += res.solve_time
         run.solves["opt1"] += res.solves
-        contact, _ = run.obj.closest_points(res.p_object_tip[None])
-        closer = np.linalg.norm(contact[0] - run.goal_contacts[r]) < run.steps[-1].contact_error[r]
-        if res.success and closer and accept_gait(run, finger, res):
+        if res.success and nearer_goal(run, r, res.p_object_tip) and accept_gait(run, finger, res):
             return True
     return False
 

@@ -46,7 +46,7 @@ from regrasp_casadi.planner_options import PlannerOptions, input_problem
 from regrasp_casadi.reposture import posture_report
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.stall_report import reached_through_others, stalled_fingers
-from regrasp_casadi.surface_route import gait_target
+from regrasp_casadi.surface_route import fingers_across, gait_target
 from regrasp_casadi.trajectory import TrajectoryOptions, attach_trajectories, motion_context, step_path
 
 if TYPE_CHECKING:
@@ -284,6 +284,26 @@ class _Run:
         """The largest contact error of the last step, m."""
         return float(np.max(self.steps[-1].contact_error))
 
+    def across(self) -> list[int]:
+        """Rows of the fingers within ζ of their goals but across the object from them (a wall between
+        the tip and its goal, `surface_route.fingers_across`), at the current grasp."""
+        return fingers_across(self.obj, self.tips_object(), self.goal_tips, self.steps[-1].contact_error,
+                              self.options.zeta)
+
+    def at_goals(self) -> bool:
+        """Every contact within ζ of its goal contact, and none across the object from it (`across`)."""
+        return self.largest_error() <= self.options.zeta and not self.across()
+
+    def unmet(self) -> str:
+        """Why the contacts are not at their goals (`at_goals` False), for a status detail."""
+        err = self.largest_error()
+        if err > self.options.zeta:
+            return f"largest contact error {err * 1e3:.2f} mm > ζ"
+        names = [self.fingers[r] for r in self.across()]
+        who = f"the {names[0]} tip is" if len(names) == 1 else f"the {', '.join(names)} tips are"
+        return (f"largest contact error {err * 1e3:.2f} mm ≤ ζ = {self.options.zeta * 1e3:.1f} mm but {who} "
+                f"across the object from {'its goal' if len(names) == 1 else 'their goals'}")
+
     # ----------------------------------------------------------------------- Algorithm 1, named steps
     def gait_round(self) -> None:
         """One finger gait (OPT1) for each finger of the gait pattern not yet at its goal, in the
@@ -447,7 +467,7 @@ def _iterate_from(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_s
         return _finish(grasp0, grasp_goal, options, t_start, run, back.restore(run, status))
 
     while run.iterations < options.max_iters:
-        if run.largest_error() <= options.zeta:
+        if run.at_goals():
             outcome = run_final_moves(run, options) if options.final_move else FinalMoves("not_run", 0, ())
             if rounds.next(run, options, outcome):  # a polish or re-posture round moved a finger
                 continue
@@ -459,7 +479,7 @@ def _iterate_from(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_s
         n_steps_before = len(run.steps)
         run.stalled = watch.stalled
         run.gait_round()
-        if run.largest_error() > options.zeta:
+        if not run.at_goals():
             _repose(run, watch.escape)
         run.iterations += 1
         run.errors.append(float(np.mean(run.steps[-1].contact_error)))
@@ -477,12 +497,11 @@ def _iterate_from(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_s
                 if options.stability == "force_closure" else ""
             hint += stalled_fingers(run.hand, run.obj, run.q, run.T_palm_object, run.goal_tips,
                                     run.steps[-1].contact_error, options.zeta, q_goal=run.q_goal,
-                                    eta=options.finger_gait.eta)
+                                    eta=options.finger_gait.eta, across=run.across())
             if run.failures and len(run.steps) == n_steps_before:  # the last iteration could not move
                 return end("solver_failure", "; ".join(run.failures) + hint)
-            return end("stalled", f"largest contact error {run.largest_error() * 1e3:.2f} mm > ζ: no "
-                                  f"progress in the last {watch.stalled} iterations{hint}")
-    if back is not None and run.largest_error() > options.zeta:
+            return end("stalled", f"{run.unmet()}: no progress in the last {watch.stalled} iterations{hint}")
+    if back is not None and not run.at_goals():
         return end("iteration_limit", "")
     return _finish(grasp0, grasp_goal, options, t_start, run)
 
@@ -519,11 +538,14 @@ def _finish(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: 
     goal grasp, `reposture.posture_report`)."""
     if outcome is None:
         outcome = FinalMoves("not_run", 0, ())
-        if options.final_move and run.largest_error() <= options.zeta:
+        if options.final_move and run.at_goals():
             outcome = run_final_moves(run, options)
-    if outcome.stop not in SETTLED_STOPS and run.largest_error() <= options.zeta:
+    if outcome.stop not in SETTLED_STOPS and run.at_goals():
         outcome = aimed_moves(run, options, outcome)  # one pose component within tolerance, the other not
-    status, detail = decide_status(run, options, outcome)
+    if run.largest_error() <= options.zeta and not run.at_goals():  # within ζ, a finger across the object
+        status, detail = "iteration_limit", f"{run.unmet()} after {run.iterations} iterations"
+    else:
+        status, detail = decide_status(run, options, outcome)
     if status == "pose_not_reached":
         detail += posture_report(run)
     return _make_plan(grasp0, grasp_goal, options, t_start, run, status, detail)

@@ -47,6 +47,9 @@ __all__ = ["stalled_fingers", "reached_through_others", "through_others", "block
 REACH_TOL = 1e-3
 """A finger whose IK gets its tip centre no closer than this to its goal cannot reach it, m."""
 
+LINE_SAMPLES = 41
+"""Samples of each straight tip-to-goal line whose exact signed distance is taken."""
+
 OFF_SURFACE_GAIN = 0.25
 """A finger whose best surface point within η of its contact is less than this part of η nearer its goal
 contact is reported (on a face towards the goal the best is η nearer)."""
@@ -54,9 +57,11 @@ contact is reported (on a face towards the goal the best is η nearer)."""
 
 def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDArray,
                     goal_tips_object: NDArray, contact_error: NDArray, zeta: float, *,
-                    n_samples: int = 41, q_goal: NDArray | None = None, eta: float | None = None) -> str:
+                    q_goal: NDArray | None = None, eta: float | None = None,
+                    across: tuple[int, ...] | list[int] = ()) -> str:
     """"; not at their goals: <finger> <error> mm (<why>) | ..." for every finger whose contact error
-    exceeds `zeta`, or "" when none does.
+    exceeds `zeta` or whose row is in `across` (within ζ, across the object from its goal:
+    `surface_route.fingers_across`), or "" when none is.
 
     Args:
         hand: the hand.
@@ -66,11 +71,11 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
         goal_tips_object: (m, 3) goal tip-sphere centres, object frame, m (`Grasp.tip_centers_object`).
         contact_error: (m,) distance of each contact to its goal contact, m.
         zeta: ζ, m.
-        n_samples: samples of each straight tip-to-goal line.
         q_goal: (n,) the goal grasp's joints, rad, if known: a further start of the reach IK
             (`tip_ik.finger_reach_ik`).
         eta: η, m: when given, a finger whose surface gains less than `OFF_SURFACE_GAIN` × η towards its
             goal within η of its contact is reported so (module docstring).
+        across: rows of fingers within ζ that are reported too (across the object from their goals).
     """
     R, t = np.asarray(T_palm_object, float)[:3, :3], np.asarray(T_palm_object, float)[:3, 3]
     tips = (np.asarray(hand.tip_positions(q), float) - t) @ R
@@ -78,10 +83,10 @@ def stalled_fingers(hand: Hand, obj: ObjectModel, q: NDArray, T_palm_object: NDA
     parts = []
     motion = None  # the paths' context (`trajectory.motion_context`), built once when a finger needs it
     for r, finger in enumerate(hand.fingers):
-        if contact_error[r] <= zeta:
+        if contact_error[r] <= zeta and r not in across:
             continue
         goal = np.asarray(goal_tips_object[r], float)
-        least = line_clearance(obj, tips[r], goal, n_samples)
+        least = line_clearance(obj, tips[r], goal, LINE_SAMPLES)
         why = []
         if least < 0.0:
             why.append(f"the object lies between its tip and its goal: the straight line passes "

@@ -1,6 +1,7 @@
 """Routes over the surface (`surface_route`): graph distances against closed-form geodesics on a sphere
 and over a bowl's rim, the η-ahead gait target, the blocked-line test against the bowl's geometry, and
-the planner on a bowl pair whose index must cross the rim (issue 12)."""
+the planner on a bowl pair whose index must cross the rim (issue 12), and a goal right across the wall,
+within ζ, which the planner must not call reached."""
 
 from __future__ import annotations
 
@@ -11,11 +12,19 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from regrasp_casadi.grasp import Grasp
 from regrasp_casadi.objects import ObjectModel
 from regrasp_casadi.planner import plan_regrasp
 from regrasp_casadi.planner_options import PlannerOptions
 from regrasp_casadi.problem import RegraspProblem
-from regrasp_casadi.surface_route import MAX_EDGE, SurfaceRoutes, gait_target, line_blocked
+from regrasp_casadi.surface_route import (
+    MAX_EDGE,
+    SurfaceRoutes,
+    fingers_across,
+    gait_target,
+    line_blocked,
+    nearer_goal,
+)
 from regrasp_casadi.verify import verify
 
 R_OUT, WALL = 0.06, 0.004  # ObjectModel.bowl()'s outer radius and wall, m
@@ -116,6 +125,32 @@ def test_a_blocked_finger_aims_straight_until_the_plan_stops_progressing(bowl):
     assert np.array_equal(gait_target(run, 0), goal)
 
 
+def test_up_the_rim_is_nearer_the_goal_along_the_surface_and_down_is_not(bowl):
+    # long_gait's test of progress (`nearer_goal`): a routed finger climbing the outer face towards the
+    # rim gets farther from its goal inside in a straight line but nearer along the surface; a gait back
+    # down (what `long_gait` towards the goal tip did, undoing each route gait of bowl seed 19 SD) is not
+    rho, wall_angle = 0.012, np.radians(40.0)
+
+    def tip_at(below: float) -> np.ndarray:  # the tip centre on the outer face, `below` rad under the rim
+        point = _bowl_point(bowl, R_OUT, below)
+        return point + rho * np.asarray(bowl.surface_normals(point[None]))[0]
+
+    inside = _bowl_point(bowl, R_OUT - WALL, wall_angle)
+    tip, up, down = tip_at(wall_angle), tip_at(wall_angle - 0.15), tip_at(wall_angle + 0.15)
+    goal_tip = inside + rho * np.asarray(bowl.surface_normals(inside[None]))[0]
+    error = float(np.linalg.norm(bowl.closest_points(tip[None])[0][0] - inside))
+    run = SimpleNamespace(goal_tips=goal_tip[None], goal_contacts=inside[None], obj=bowl, routes=None,
+                          hand=SimpleNamespace(tip_radius=rho), tips_object=lambda: tip[None],
+                          steps=[SimpleNamespace(contact_error=np.array([error]))],
+                          options=replace(PlannerOptions(), finger_gait=SimpleNamespace(eta=0.01)),
+                          stalled=PlannerOptions().route_after)
+    assert np.linalg.norm(up - goal_tip) > np.linalg.norm(tip - goal_tip)  # farther in a straight line
+    assert nearer_goal(run, 0, up) and not nearer_goal(run, 0, down)
+    run.stalled = 0  # not routed yet: the straight contact error decides, and both are farther
+    assert not nearer_goal(run, 0, up) and not nearer_goal(run, 0, down)
+    assert not nearer_goal(run, 0, tip)  # where it is: not nearer
+
+
 @pytest.fixture(scope="module")
 def behind_the_rim():
     return RegraspProblem.load(BEHIND_THE_RIM)
@@ -136,3 +171,36 @@ def test_without_routes_the_index_stalls_behind_the_rim(behind_the_rim):
     assert plan.status == "stalled"
     index = plan.status_detail.split("not at their goals:")[1].split("index")[1]
     assert "the object lies between its tip and its goal" in index.split("|")[0]
+
+
+def test_a_tip_across_the_wall_within_zeta_is_across_and_one_beside_it_is_not(bowl):
+    rho, zeta, below = 0.012, 0.006, np.radians(40.0)
+    n_out = np.array([np.cos(below), 0.0, -np.sin(below)])
+    outside, inside = _bowl_point(bowl, R_OUT, below), _bowl_point(bowl, R_OUT - WALL, below)
+    beside = _bowl_point(bowl, R_OUT, below + 0.004 / R_OUT)  # 4 mm down the same (outer) face
+    tips = np.array([outside + rho * n_out] * 3)
+    goals = np.array([inside, beside, inside])
+    goal_tips = goals + rho * np.asarray(bowl.surface_normals(goals))
+    error = np.array([np.linalg.norm(outside - inside), np.linalg.norm(outside - beside), 0.02])
+    assert error[:2] == pytest.approx([WALL, 0.004], abs=2e-4)  # both within ζ of their goal contacts
+    # the third is across too, but farther than ζ: the contact error already says it is not there
+    assert fingers_across(bowl, tips, goal_tips, error, zeta) == [0]
+
+
+@pytest.mark.parametrize("method", ["svd", "sd"])
+def test_a_goal_across_the_wall_within_zeta_is_not_called_reached(behind_the_rim, method):
+    # grasp0 itself as the goal, but the index's goal contact right across the 4 mm wall from its own:
+    # within ζ = 6 mm, on the other face. Before `fingers_across`, both methods said "converged" with no
+    # move and verify's goal_side check failed the plan.
+    g0 = behind_the_rim.grasp0
+    contacts = np.array(g0.contacts_object)
+    n = np.asarray(g0.obj.surface_normals(contacts[:1]))[0]
+    (inside,), _ = g0.obj.closest_points((contacts[0] - WALL * n)[None])
+    contacts[0] = inside
+    goal = Grasp(g0.hand, g0.obj, g0.T_palm_object, contacts, None)
+    assert np.linalg.norm(inside - g0.contacts_object[0]) < PlannerOptions().zeta
+    plan = plan_regrasp(g0, goal, method=method, stability="none")
+    report = verify(plan)
+    assert report.ok, [v.message for v in report.violations]
+    if plan.status != "converged":
+        assert "the index tip is across the object from its goal" in plan.status_detail
