@@ -304,7 +304,8 @@ def _judge(run: FinalMoveRun, res, distance: float, zeta: float
 def decide_status(run: FinalMoveRun, options: PlannerOptions, outcome: FinalMoves) -> tuple[str, str]:
     """The plan's (status, detail) once the iterations ended: "converged" (contacts within ζ and the
     object within the pose tolerance), "pose_not_reached" (contacts within ζ, the object not) or
-    "iteration_limit" (contacts not within ζ after `max_iters`)."""
+    "iteration_limit" (contacts not within ζ after `max_iters`). The planner calls it only with no finger
+    across the object from its goal (`planner._Run.at_goals`; it decides that case itself)."""
     err = run.largest_error()
     if err > options.zeta:
         return "iteration_limit", (f"largest contact error {err * 1e3:.2f} mm > ζ after "

@@ -406,9 +406,10 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         TypeError: `grasp0` or `grasp_goal` is not a `Grasp` (the message names the argument).
 
     Returns:
-        A `Plan` whose `status` says why it stopped: "converged" (contacts within ζ and the object
-        within `pose_tol_position` / `pose_tol_rotation` of the desired pose), "pose_not_reached"
-        (contacts within ζ, the object farther: the distance in `status_detail`), "iteration_limit",
+        A `Plan` whose `status` says why it stopped: "converged" (contacts within ζ, none across the
+        object from its goal, and the object within `pose_tol_position` / `pose_tol_rotation` of the
+        desired pose), "pose_not_reached" (contacts within ζ, the object farther: the distance in
+        `status_detail`), "iteration_limit",
         "stalled" (no progress for `stall_limit` iterations), "solver_failure" (with the step and
         IPOPT's status in `status_detail`), "interrupted" (Ctrl-C: the current solve finishes, the plan
         holds the steps so far; a second Ctrl-C raises KeyboardInterrupt) or "invalid_input". A failed

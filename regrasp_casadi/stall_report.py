@@ -1,5 +1,6 @@
 """Why the fingers of a stalled plan are not at their goal contacts: a sentence per finger still farther
-than ζ, from checks independent of the NLPs at the plan's last grasp, for the plan's `status_detail`.
+than ζ (or within ζ but across the object from its goal, `surface_route.fingers_across`), from checks
+independent of the NLPs at the plan's last grasp, for the plan's `status_detail`.
 
 * **In the way**: the straight line from the finger's tip centre to its goal tip centre (object frame),
   which OPT1's cost pulls the tip along, passes through the object (exact signed distance < 0 at one of
