@@ -187,16 +187,26 @@ def test_a_plan_whose_retry_from_the_branch_fails_counts_the_retry_s_solves(stal
     assert plan.options["solves"]["opt2"] == tries[1]["opt2"] == tries[0]["opt2"] + 5
 
 
-@pytest.mark.slow  # five plans of the bowl and the flat tool: in the slow run
-@pytest.mark.parametrize(("pair_file", "method"), [("bowl_pair_seed7.yaml", "sd"),
-                                                   ("bowl_pair_seed19.yaml", "svd")])
-def test_the_pair_converges_with_the_search_and_not_without(pair_file, method):
-    pair = RegraspProblem.load(DATA / pair_file)
-    plan = plan_regrasp(pair.grasp0, pair.grasp_goal, method=method, stability="none")
+@pytest.mark.slow  # plans of the bowl and the flat tool: in the slow run
+def test_the_pair_converges_with_the_search_and_not_without():
+    pair = RegraspProblem.load(DATA / "bowl_pair_seed7.yaml")
+    plan = plan_regrasp(pair.grasp0, pair.grasp_goal, method="sd", stability="none")
     assert plan.status == "converged", plan.status_detail
     assert verify(plan).ok
-    without = plan_regrasp(pair.grasp0, pair.grasp_goal, method=method, stability="none", free_after=None)
+    without = plan_regrasp(pair.grasp0, pair.grasp_goal, method="sd", stability="none", free_after=None)
     assert without.status != "converged"
+
+
+@pytest.mark.slow
+def test_the_bowl_pair_of_seed_19_no_longer_needs_the_search():
+    """Until 382901a the bowl pair of seed 19 (SVD) converged only with the freeing search: without it
+    the plan did not converge (this test asserted so). Since then a routed finger's `long_gait` must
+    bring it nearer along the surface (`surface_route.nearer_goal`), not in a straight line, and the
+    pair converges without the search (and with it, in 26 iterations instead of 32: benchmarks README)."""
+    pair = RegraspProblem.load(DATA / "bowl_pair_seed19.yaml")
+    plan = plan_regrasp(pair.grasp0, pair.grasp_goal, method="svd", stability="none", free_after=None)
+    assert plan.status == "converged", plan.status_detail
+    assert verify(plan).ok
 
 
 @pytest.mark.slow
