@@ -543,7 +543,7 @@ def _finish(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: 
             outcome = run_final_moves(run, options)
     if outcome.stop not in SETTLED_STOPS and run.at_goals():
         outcome = aimed_moves(run, options, outcome)  # one pose component within tolerance, the other not
-    if run.largest_error() <= options.zeta and not run.at_goals():  # within ζ, a finger across the object
+    if run.largest_error() <= options.zeta and run.across():  # within ζ, a finger across the object
         status, detail = "iteration_limit", f"{run.unmet()} after {run.iterations} iterations"
     else:
         status, detail = decide_status(run, options, outcome)

@@ -189,13 +189,12 @@ def gait_target(run: _Run, r: int) -> NDArray[np.float64]:
     or, when the straight line to it is blocked (`line_blocked`), `PlannerOptions.surface_routes` is on
     and the plan has gone `PlannerOptions.route_after` iterations without progress, the point η along
     the surface route (`SurfaceRoutes.target`)."""
-    goal = run.goal_tips[r]
-    tip = run.tips_object()[r]
-    if not _routed(run, tip, goal):
-        return goal
+    tip = _routed_tip(run, r)
+    if tip is None:
+        return run.goal_tips[r]
     contact, normal = _contact(run, tip)
     target = _routes(run).target(r, contact, normal, run.options.finger_gait.eta, float(run.hand.tip_radius))
-    return goal if target is None else target
+    return run.goal_tips[r] if target is None else target
 
 
 def nearer_goal(run: _Run, r: int, p_object_tip: NDArray) -> bool:
@@ -205,8 +204,8 @@ def nearer_goal(run: _Run, r: int, p_object_tip: NDArray) -> bool:
     outer face is nearer along the surface though farther in a straight line; one back down it is not
     (measured: the generated bowl pair of seed 19, SD, the index 71–73 mm from its goal for 20
     iterations, each route gait up the rim undone by a `long_gait` back down)."""
-    tip, goal = run.tips_object()[r], run.goal_tips[r]
-    if _routed(run, tip, goal):
+    tip = _routed_tip(run, r)
+    if tip is not None:
         routes = _routes(run)
         after, now = (routes.distance(r, *_contact(run, p))[0] for p in (p_object_tip, tip))
         return after < now
@@ -214,10 +213,13 @@ def nearer_goal(run: _Run, r: int, p_object_tip: NDArray) -> bool:
     return float(np.linalg.norm(contact[0] - run.goal_contacts[r])) < float(run.steps[-1].contact_error[r])
 
 
-def _routed(run: _Run, tip: NDArray, goal: NDArray) -> bool:
-    """Whether `gait_target` routes a finger with tip centre `tip` and goal tip centre `goal` (3,)."""
-    return (run.options.surface_routes and run.stalled >= run.options.route_after
-            and line_blocked(run.obj, tip, goal))
+def _routed_tip(run: _Run, r: int) -> NDArray | None:
+    """Finger r's tip centre (3,), object frame, m, when `gait_target` routes it, else None (the cheap
+    conditions first: the kinematics and the exact distances only once the plan has stalled)."""
+    if not run.options.surface_routes or run.stalled < run.options.route_after:
+        return None
+    tip = run.tips_object()[r]
+    return tip if line_blocked(run.obj, tip, run.goal_tips[r]) else None
 
 
 def _routes(run: _Run) -> SurfaceRoutes:
