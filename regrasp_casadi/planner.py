@@ -44,6 +44,7 @@ from regrasp_casadi.nlp_cache import NLPCache, clear_built_solvers
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions, input_problem
 from regrasp_casadi.reposture import posture_report
+from regrasp_casadi.restarts import RESTART_STATUSES, restarted
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.stall_report import reached_through_others, stalled_fingers
 from regrasp_casadi.surface_route import fingers_across, gait_target
@@ -428,7 +429,12 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
                           f"the initial grasp is not certified ({run.steps[0].certificate['detail']}); "
                           f"plan with stability='none' to plan without a stability certificate")
     with deferred_interrupts() as stop:
-        return _iterate(grasp0, grasp_goal, options, t_start, run, progress, stop)
+        plan = _iterate(grasp0, grasp_goal, options, t_start, run, progress, stop)
+        if options.restarts and plan.status in RESTART_STATUSES:  # planned again with a variant
+            plan = restarted(plan, options, lambda o: _iterate(grasp0, grasp_goal, o, time.perf_counter(),
+                                                               _Run(grasp0, grasp_goal, o, run.cache),
+                                                               progress, stop))
+    return plan
 
 
 def _iterate(grasp0: Grasp, grasp_goal: Grasp, options: PlannerOptions, t_start: float, run: _Run,

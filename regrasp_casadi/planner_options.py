@@ -137,6 +137,13 @@ class PlannerOptions:
     it, a re-posture round searches so too for a finger whose goal posture is obstructed, from where
     the re-posture rounds first moved no finger (`final_rounds.free_postures`,
     `reposture.posture_obstruction`). None: neither."""
+    restarts: int = 3
+    """A plan that does not converge ("stalled", "iteration_limit", "pose_not_reached",
+    "solver_failure") is planned again from the start with up to this many variants of these options,
+    in order (`restarts.VARIANTS`: the gait pattern reversed, the other gait order, η × 0.7); the first
+    that converges is the plan, else the first plan with the restarts' statuses in its detail
+    (`restarts.restarted`; an addition to the paper: the plans are local and amplify small
+    differences, so a stall is often a draw, not a verdict). 0: none."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)
@@ -237,6 +244,8 @@ def number_problem(options: PlannerOptions) -> str:  # noqa: PLR0911
         return f"final_time_budget must be non-negative (s) or None, got {options.final_time_budget}"
     if options.sd_escape_gain is not None and not options.sd_escape_gain >= 0:
         return f"sd_escape_gain must be non-negative (m) or None, got {options.sd_escape_gain}"
+    if not (isinstance(options.restarts, int) and options.restarts >= 0):
+        return f"restarts must be a non-negative number of plans, got {options.restarts!r}"
     return ""
 
 

@@ -1,0 +1,104 @@
+"""Restarts: a plan that does not converge is planned again from the start with a variant of its options.
+
+The planner is a local method: each gait and reposing is a local optimum of its NLP, and the next one
+starts where it ended, so a plan amplifies small differences. Measured: the same code (525e128) and
+the same generated pairs gave 116 of 120 converged plans on the objects table's seeds 0–9
+(`benchmarks/objects.py`) on one VM and 111 on another of the same CPU family (kernel builds v1272 and
+v1300), plans failing on one machine converging on the other (bowl 6 SVD, cup 0 SVD, sphere 0 SD). A
+plan that stalls so is a draw of a chaotic process more than a verdict on the pair, and a draw with
+other, equally valid choices often converges. Of the 18 of 240 plans of both seed sets (0–19) that did
+not converge on the second VM (stability "none"), planned again: 8 converge with the gait pattern
+reversed (sphere 0 and 7 SD, bowl 6 both methods, cup 11 SD, flat tool 11 both, holed box 12 SD), one
+more with the stability gait order (bowl 15 SD) and one more with η × 0.7 (cup 0 SVD); the other 8
+(bowl 5 and 16 both methods, bowl 19 both, cup 15 both: a finger whose goal is across the wall) fail
+with all three.
+
+`restarted` makes up to `PlannerOptions.restarts` such draws, in the order of `VARIANTS`, each a whole
+plan from the initial grasp, and returns the first that converges; if none does, the first plan, with
+what the restarts ended in added to its status detail. A plan that converges the first time is the
+same plan as without restarts. Every draw is deterministic, so the call still is: the same input gives
+the same plan. The plan's options are its variant's (planned again with them, without restarts, they
+give the same plan); `Plan.options["restart"]` names the variant ("" for the first plan),
+`Plan.options["attempts"]` counts the plans made, and `Plan.timing` is the whole call's.
+
+    >>> plan = restarted(first_plan, options, replan)   # replan(options) -> Plan, one more whole plan
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from regrasp_casadi.plan import Plan
+    from regrasp_casadi.planner_options import PlannerOptions
+
+__all__ = ["RESTART_STATUSES", "VARIANTS", "restart_options", "restarted"]
+
+RESTART_STATUSES = ("stalled", "iteration_limit", "pose_not_reached", "solver_failure")
+"""The statuses after which a plan is planned again (not "converged", "interrupted", "invalid_input")."""
+
+
+def _reversed_gait(options: PlannerOptions, gait_used: tuple[str, ...]) -> PlannerOptions:
+    """The gait pattern the first plan used, in reverse order."""
+    return replace(options, gait=tuple(reversed(gait_used)))
+
+
+def _other_order(options: PlannerOptions, gait_used: tuple[str, ...]) -> PlannerOptions:
+    """The gait pattern in the stability order (each round's next gait the finger whose lift leaves the
+    best-held grasp, `PlannerOptions.gait_order`); the pattern's own order when the first plan used
+    another."""
+    return replace(options, gait_order="stability" if options.gait_order == "pattern" else "pattern")
+
+
+def _shorter_gaits(options: PlannerOptions, gait_used: tuple[str, ...]) -> PlannerOptions:
+    """OPT1's step bound η × `ETA_FACTOR`."""
+    return options.with_overrides(eta=ETA_FACTOR * options.finger_gait.eta)
+
+
+ETA_FACTOR = 0.7
+"""The shorter gaits' η, as a fraction of the first plan's."""
+
+VARIANTS: tuple[tuple[str, Callable[[PlannerOptions, tuple[str, ...]], PlannerOptions]], ...] = (
+    ("gait reversed", _reversed_gait),
+    ("the other gait order", _other_order),
+    ("shorter gaits", _shorter_gaits),
+)
+"""(name, make) of each restart, in order: `make(options, gait_used)` gives the variant's options from
+the first plan's options and the gait pattern it used (`Plan.options["gait_used"]`)."""
+
+
+def restart_options(options: PlannerOptions, gait_used: tuple[str, ...]) -> list[tuple[str, PlannerOptions]]:
+    """The first `options.restarts` variants (name, options), each with no restarts of its own."""
+    return [(name, replace(make(options, gait_used), restarts=0))
+            for name, make in VARIANTS[:options.restarts]]
+
+
+def restarted(first: Plan, options: PlannerOptions, replan: Callable[[PlannerOptions], Plan]) -> Plan:
+    """The first converged plan of the restarts of `first` (a plan of `options` whose status is in
+    `RESTART_STATUSES`), each made by `replan(variant_options)`; else `first`, its detail naming what
+    the restarts ended in. The plan returned has the whole call's timing (s, summed per key)."""
+    plans = [first]
+    tried = []
+    for name, variant in restart_options(options, tuple(first.options.get("gait_used") or ())):
+        plan = replan(variant)
+        plans.append(plan)
+        tried.append(f"{name}: {plan.status}")
+        if plan.status == "converged":
+            detail = f"{plan.status_detail}; restart ({name}) after the first plan ended {first.status}"
+            return _whole_call(plan, plans, name, detail)
+        if plan.status not in RESTART_STATUSES:  # interrupted: stop there
+            break
+    detail = first.status_detail + (f"; restarts did not converge ({'; '.join(tried)})" if tried else "")
+    return _whole_call(first, plans, "", detail)
+
+
+def _whole_call(plan: Plan, plans: list[Plan], name: str, detail: str) -> Plan:
+    """`plan` with `detail`, the restart's name in its options and the timing of all `plans` summed."""
+    timing: dict[str, float] = {}
+    for p in plans:
+        for key, value in p.timing.items():
+            timing[key] = timing.get(key, 0.0) + float(value)
+    return replace(plan, status_detail=detail, timing=timing,
+                   options={**plan.options, "restart": name, "attempts": len(plans)})
