@@ -143,7 +143,7 @@ def test_sd_escape_blocked_on_the_way_to_the_desired_pose_repose_towards_the_con
     trimesh's exact closest points; without it (None) it still stalls (≈ 15 s for both plans)."""
     problem = RegraspProblem.load(Path(__file__).parent / "data" / "cup_seed4_pair.yaml")
     without = plan_regrasp(problem.grasp0, problem.grasp_goal, method="sd", stability="none",
-                           sd_escape_gain=None)
+                           sd_escape_gain=None, restarts=0)
     plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="sd", stability="none")
     assert without.status == "stalled", without.status_detail
     assert np.max(_final_contact_errors(problem, without)) > 0.02

@@ -73,5 +73,5 @@ def test_the_pair_converges_with_make_way_and_stalls_without(monkeypatch):
     assert plan.status == "converged", plan.status_detail
     assert verify(plan).ok
     monkeypatch.setattr(planner, "make_way", lambda run, finger: False)
-    stalled = plan_regrasp(pair.grasp0, pair.grasp_goal, options=options)
+    stalled = plan_regrasp(pair.grasp0, pair.grasp_goal, options=options, restarts=0)
     assert stalled.status == "stalled" and "only through the middle finger" in stalled.status_detail

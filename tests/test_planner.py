@@ -120,11 +120,16 @@ def test_no_rebuild_inside_a_plan(monkeypatch):
 
 
 def test_a_plan_keeps_its_nlps_in_the_cache_it_is_given(box):
-    cache = NLPCache()
+    cache, m = NLPCache(), len(box.hand.fingers)
+    plan_regrasp(box.grasp0, box.grasp_goal, method="sd", max_iters=1, cache=cache, restarts=0)
+    assert cache.builds == m + 2  # OPT1 per finger, OPT2 "sd" and "svd" (final move)
+    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="sd", max_iters=1, cache=cache, restarts=0)
+    assert cache.builds == m + 2 and plan.timing["build"] == 0.0
+    # with its restarts (the plan is cut short): the shorter gaits' OPT1 once per finger, then none
     plan_regrasp(box.grasp0, box.grasp_goal, method="sd", max_iters=1, cache=cache)
-    assert cache.builds == len(box.hand.fingers) + 2  # OPT1 per finger, OPT2 "sd" and "svd" (final move)
+    assert cache.builds == 2 * m + 2
     plan = plan_regrasp(box.grasp0, box.grasp_goal, method="sd", max_iters=1, cache=cache)
-    assert cache.builds == len(box.hand.fingers) + 2 and plan.timing["build"] == 0.0
+    assert plan.options["attempts"] == 4 and cache.builds == 2 * m + 2 and plan.timing["build"] == 0.0
 
 
 def test_same_input_same_plan(box):
@@ -165,7 +170,7 @@ def test_same_plan_in_a_fresh_process(box, tmp_path):
 
 
 def test_iteration_limit_is_a_status_with_a_partial_plan(box):
-    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="svd", max_iters=1)
+    plan = plan_regrasp(box.grasp0, box.grasp_goal, method="svd", max_iters=1, restarts=0)
     assert plan.status == "iteration_limit"
     assert plan.iterations == 1 and len(plan.iteration_errors) == 2
     assert len(plan.steps) >= 2  # the initial grasp and what the iteration did
@@ -326,7 +331,7 @@ def test_unreachable_goal_ends_with_a_status_and_a_valid_partial_plan(box):
     T_far = np.array(box.grasp0.T_palm_object)
     T_far[:3, 3] += [0.3, 0.0, 0.0]
     goal = Grasp.from_contacts(box.hand, box.obj, mirrored, T_far)
-    plan = plan_regrasp(box.grasp0, goal, method="svd", max_iters=6)
+    plan = plan_regrasp(box.grasp0, goal, method="svd", max_iters=6, restarts=0)
     assert plan.status in ("iteration_limit", "stalled", "solver_failure")
     assert plan.iterations <= 6 and np.max(plan.steps[-1].contact_error) > plan.options["zeta"]
     assert verify(plan, box.hand, box.obj).ok

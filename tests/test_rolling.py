@@ -128,7 +128,7 @@ def test_final_moves_that_roll_the_contacts_away_are_followed_by_gaits(problem):
     from regrasp_casadi.verify import verify
 
     without = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", stability="none",
-                           final_regait=False, final_reposture=0)
+                           final_regait=False, final_reposture=0, restarts=0)
     assert without.status == "pose_not_reached", without.status_detail
     assert "contact drift" in without.status_detail
     plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method="svd", stability="none",
