@@ -19,7 +19,8 @@ what the restarts ended in added to its status detail. A plan that converges the
 same plan as without restarts. Every draw is deterministic, so the call still is: the same input gives
 the same plan. The plan's options are its variant's (planned again with them, without restarts, they
 give the same plan); `Plan.options["restart"]` names the variant ("" for the first plan),
-`Plan.options["attempts"]` counts the plans made, and `Plan.timing` is the whole call's.
+`Plan.options["attempts"]` counts the plans made, and `Plan.timing` and `Plan.options["solves"]`
+are the whole call's.
 
     >>> plan = restarted(first_plan, options, replan)   # replan(options) -> Plan, one more whole plan
 """
@@ -95,10 +96,17 @@ def restarted(first: Plan, options: PlannerOptions, replan: Callable[[PlannerOpt
 
 
 def _whole_call(plan: Plan, plans: list[Plan], name: str, detail: str) -> Plan:
-    """`plan` with `detail`, the restart's name in its options and the timing of all `plans` summed."""
-    timing: dict[str, float] = {}
-    for p in plans:
-        for key, value in p.timing.items():
-            timing[key] = timing.get(key, 0.0) + float(value)
-    return replace(plan, status_detail=detail, timing=timing,
-                   options={**plan.options, "restart": name, "attempts": len(plans)})
+    """`plan` with `detail`, the restart's name in its options, and the timing (s) and solve counts
+    (`options["solves"]`) of all `plans` summed per key, as the planner's own retries count them."""
+    return replace(plan, status_detail=detail, timing=_summed([p.timing for p in plans]),
+                   options={**plan.options, "restart": name, "attempts": len(plans),
+                            "solves": _summed([p.options.get("solves") or {} for p in plans])})
+
+
+def _summed(counts: list[dict]) -> dict:
+    """The values of `counts` summed per key (keys in first-seen order)."""
+    total: dict = {}
+    for c in counts:
+        for key, value in c.items():
+            total[key] = total.get(key, 0) + value
+    return total

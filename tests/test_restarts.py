@@ -21,7 +21,8 @@ def _plan(status: str, gait: tuple[str, ...] = GAIT, timing: dict | None = None)
     return Plan(steps=(), goal_contacts_object=np.zeros((4, 3)), goal_T_palm_object=np.eye(4),
                 fingers=GAIT, hand_spec={}, object_spec={}, method="svd", status=status,
                 status_detail=f"{status} detail", iterations=3, iteration_errors=np.zeros(3),
-                timing=timing or {"opt1": 1.0, "opt2": 2.0, "total": 4.0}, options={"gait_used": list(gait)})
+                timing=timing or {"opt1": 1.0, "opt2": 2.0, "total": 4.0},
+                options={"gait_used": list(gait), "solves": {"opt1": 10, "opt2": 3}})
 
 
 def test_a_stalled_plan_is_planned_again_with_the_gait_reversed_and_the_converged_one_returned():
@@ -38,6 +39,7 @@ def test_a_stalled_plan_is_planned_again_with_the_gait_reversed_and_the_converge
     assert plan.status == "converged" and plan.options["restart"] == "gait reversed"
     assert plan.options["attempts"] == 2
     assert plan.timing == {"opt1": 1.5, "opt2": 3.5, "total": 6.5}  # both plans' time, per key
+    assert plan.options["solves"] == {"opt1": 20, "opt2": 6}  # and both plans' solves
     assert "after the first plan ended stalled" in plan.status_detail
 
 
