@@ -1,6 +1,7 @@
 """The `regrasp` command line: plan, verify, view, generate grasps, benchmark and demo.
 
     regrasp plan PROBLEM.yaml --method svd --out plan.json [--html replay.html] [--view] [--max-iters N]
+                              [--restarts N]
     regrasp verify plan.json [--all] [--zeta MM] [--pose-tol-position MM] [--pose-tol-rotation DEG] ...
     regrasp view plan.json [--html replay.html] [--png shot.png [--at SECONDS]] [--speed X]
     regrasp simulate plan.json [--gravity X Y Z] [--html sim.html] [--json report.json]
@@ -40,6 +41,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from regrasp_casadi.cli_compile import add_compile_parser
+from regrasp_casadi.cli_plan import restart_line, run_plan
 from regrasp_casadi.cli_simulate import add_simulate_parser
 from regrasp_casadi.cli_tools import (
     HelpFormatter,
@@ -51,8 +53,6 @@ from regrasp_casadi.cli_tools import (
     found_progress,
     non_negative_float,
     non_negative_int,
-    plan_gravity_palm,
-    plan_progress,
     plan_stability,
     positive_float,
     positive_int,
@@ -90,28 +90,6 @@ _EPILOG = """exit codes:
 
 
 # ---------------------------------------------------------------------------------------------- helpers
-def _run_plan(problem, method: str, max_iters: int | None, show_progress: bool,
-              stability: str | None = None, gravity_palm: tuple | None = None) -> Plan:
-    from regrasp_casadi.planner import plan_regrasp
-
-    kwargs = {"method": method}
-    if max_iters is not None:
-        kwargs["max_iters"] = max_iters
-    if stability is not None:
-        kwargs["stability"] = stability
-    if gravity_palm is not None:
-        kwargs["gravity_palm"] = plan_gravity_palm(gravity_palm, problem.grasp0)
-    if getattr(problem, "object_mass", None) is not None:
-        kwargs["object_mass"] = problem.object_mass
-    n_max = max_iters if max_iters is not None else 50
-    with progress_bar("planning", show_progress, total=n_max) as bar:
-        plan = plan_regrasp(problem.grasp0, problem.grasp_goal, progress=plan_progress(bar), **kwargs)
-        if bar is not None:   # the bar ends where the plan stopped, at 100 %
-            bar.total = bar.n = plan.iterations
-            bar.refresh()
-    return plan
-
-
 def _verify(plan: Plan, hand=None, obj=None, show_progress: bool = False, **tolerances: float):
     from regrasp_casadi.verify import verify
 
@@ -135,6 +113,8 @@ def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, ela
           f"({plan.step_counts()}), method {plan.method}")
     if plan.status != "converged" and plan.status_detail:
         print(f"  ({' '.join(plan.status_detail.split())})")
+    if restart_line(plan):
+        print(f"  {restart_line(plan)}")
     print(f"final average contact error: {err * 1e3:.2f} mm; object {dp * 1e3:.2f} mm / "
           f"{math.degrees(dr):.2f}° from the desired pose; planning time {elapsed:.2f} s\n"
           f"verify: {'OK' if report.ok else f'FAILED ({len(report.violations)} violations)'}")
@@ -202,7 +182,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     stability, gravity = plan_stability(args.stability, args.gravity, problem.gravity)
     t0 = time.perf_counter()
     progress = progress_enabled(args)
-    plan = _run_plan(problem, args.method, args.max_iters, progress, stability, gravity)
+    plan = run_plan(problem, args.method, args.max_iters, progress, stability, gravity, args.restarts)
     code = _finish_plan(plan, problem.hand, problem.obj, out, html, time.perf_counter() - t0, progress,
                         speed=args.speed)
     if args.view:
@@ -372,7 +352,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
           f"stability {args.stability!r}")
     t0 = time.perf_counter()
     progress = progress_enabled(args)
-    plan = _run_plan(problem, args.method, None, progress, args.stability)
+    plan = run_plan(problem, args.method, None, progress, args.stability)
     code = _finish_plan(plan, problem.hand, problem.obj, out_dir / "plan.json", out_dir / "replay.html",
                         time.perf_counter() - t0, progress, speed=args.speed)
     print(f"open {out_dir / 'replay.html'} in a browser to watch the regrasp")
@@ -499,6 +479,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_speed(sp)
     sp.add_argument("--max-iters", type=non_negative_int, metavar="N",
                     help="planner iteration limit (default: 50, the planner's)")
+    sp.add_argument("--restarts", type=non_negative_int, metavar="N",
+                    help="plans made again with other gait choices if one does not converge (default: 3; "
+                         "0 for one plan: a failing plan then costs one plan's time, not up to four)")
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
     sp.set_defaults(func=cmd_plan)
 

@@ -44,7 +44,7 @@ from regrasp_casadi.nlp_cache import NLPCache, clear_built_solvers
 from regrasp_casadi.plan import Plan, PlanStep
 from regrasp_casadi.planner_options import PlannerOptions, input_problem
 from regrasp_casadi.reposture import posture_report
-from regrasp_casadi.restarts import RESTART_STATUSES, restarted
+from regrasp_casadi.restarts import RESTART_STATUSES, continued, restarted
 from regrasp_casadi.stability import holding_quality, torque_reference
 from regrasp_casadi.stall_report import reached_through_others, stalled_fingers
 from regrasp_casadi.surface_route import fingers_across, gait_target
@@ -399,7 +399,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
         options: a `PlannerOptions`; keyword `overrides` replace its fields (e.g. ``method="sd"``) or
             set the NLPs' options (e.g. ``eta=0.008``, see `PlannerOptions.with_overrides`).
         progress: optional callable ``progress(iteration, max_iters, average_error_m)`` called after
-            every iteration.
+            every iteration; through restarts both counts go on from the earlier plans' iterations.
         cache: where the NLPs are kept between plans (default: the process-wide cache that
             `clear_nlp_cache` clears).
 
@@ -431,9 +431,9 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
     with deferred_interrupts() as stop:
         plan = _iterate(grasp0, grasp_goal, options, t_start, run, progress, stop)
         if options.restarts and plan.status in RESTART_STATUSES:  # planned again with a variant
-            plan = restarted(plan, options, lambda o: _iterate(grasp0, grasp_goal, o, time.perf_counter(),
-                                                               _Run(grasp0, grasp_goal, o, run.cache),
-                                                               progress, stop))
+            plan = restarted(plan, options, lambda o, done: _iterate(
+                grasp0, grasp_goal, o, time.perf_counter(), _Run(grasp0, grasp_goal, o, run.cache),
+                continued(progress, done), stop))
     return plan
 
 

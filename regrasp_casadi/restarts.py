@@ -19,10 +19,13 @@ what the restarts ended in added to its status detail. A plan that converges the
 same plan as without restarts. Every draw is deterministic, so the call still is: the same input gives
 the same plan. The plan's options are its variant's (planned again with them, without restarts, they
 give the same plan); `Plan.options["restart"]` names the variant ("" for the first plan),
-`Plan.options["attempts"]` counts the plans made, and `Plan.timing` and `Plan.options["solves"]`
-are the whole call's.
+`Plan.options["attempts"]` counts the plans made, `Plan.options["iterations_all"]` their iterations,
+and `Plan.timing` and `Plan.options["solves"]` are the whole call's. The planner's progress callback
+counts on through the restarts (`continued`): a restart's iterations follow the earlier plans', so a
+progress bar goes on rather than back to the start.
 
-    >>> plan = restarted(first_plan, options, replan)   # replan(options) -> Plan, one more whole plan
+    >>> plan = restarted(first_plan, options, replan)   # replan(options, done) -> Plan, one more whole
+    ...                                                 # plan, its progress counted after `done` iterations
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.plan import Plan
     from regrasp_casadi.planner_options import PlannerOptions
 
-__all__ = ["RESTART_STATUSES", "VARIANTS", "restart_options", "restarted"]
+__all__ = ["RESTART_STATUSES", "VARIANTS", "continued", "restart_options", "restarted"]
 
 RESTART_STATUSES = ("stalled", "iteration_limit", "pose_not_reached", "solver_failure")
 """The statuses after which a plan is planned again (not "converged", "interrupted", "invalid_input")."""
@@ -76,14 +79,24 @@ def restart_options(options: PlannerOptions, gait_used: tuple[str, ...]) -> list
             for name, make in VARIANTS[:options.restarts]]
 
 
-def restarted(first: Plan, options: PlannerOptions, replan: Callable[[PlannerOptions], Plan]) -> Plan:
+def continued(progress: Callable[[int, int, float], None] | None,
+              done: int) -> Callable[[int, int, float], None] | None:
+    """The planner's ``progress(iteration, max_iters, average_error_m)`` for a plan made after `done`
+    iterations of earlier ones: both counts shifted by `done` (None stays None)."""
+    if progress is None or done == 0:
+        return progress
+    return lambda iteration, max_iters, error_m: progress(done + iteration, done + max_iters, error_m)
+
+
+def restarted(first: Plan, options: PlannerOptions, replan: Callable[[PlannerOptions, int], Plan]) -> Plan:
     """The first converged plan of the restarts of `first` (a plan of `options` whose status is in
-    `RESTART_STATUSES`), each made by `replan(variant_options)`; else `first`, its detail naming what
-    the restarts ended in. The plan returned has the whole call's timing (s, summed per key)."""
+    `RESTART_STATUSES`), each made by `replan(variant_options, done)` (`done`: the iterations of the
+    plans before it); else `first`, its detail naming what the restarts ended in. The plan returned has
+    the whole call's timing (s, summed per key)."""
     plans = [first]
     tried = []
     for name, variant in restart_options(options, tuple(first.options.get("gait_used") or ())):
-        plan = replan(variant)
+        plan = replan(variant, sum(p.iterations for p in plans))
         plans.append(plan)
         tried.append(f"{name}: {plan.status}")
         if plan.status == "converged":
@@ -96,10 +109,11 @@ def restarted(first: Plan, options: PlannerOptions, replan: Callable[[PlannerOpt
 
 
 def _whole_call(plan: Plan, plans: list[Plan], name: str, detail: str) -> Plan:
-    """`plan` with `detail`, the restart's name in its options, and the timing (s) and solve counts
-    (`options["solves"]`) of all `plans` summed per key, as the planner's own retries count them."""
+    """`plan` with `detail`, the restart's name in its options, and the timing (s), iterations and solve
+    counts (`options["solves"]`) of all `plans` summed per key, as the planner's own retries count them."""
     return replace(plan, status_detail=detail, timing=_summed([p.timing for p in plans]),
                    options={**plan.options, "restart": name, "attempts": len(plans),
+                            "iterations_all": sum(p.iterations for p in plans),
                             "solves": _summed([p.options.get("solves") or {} for p in plans])})
 
 

@@ -336,3 +336,33 @@ def test_plan_takes_the_problem_files_gravity(extra, stability, gravity, tmp_pat
     cli.main(["plan", str(path), "--out", str(tmp_path / "p.json"), *extra])
     (options,) = calls
     assert options["stability"] == stability and options.get("gravity_palm") == gravity
+
+
+def test_plan_restarts_flag_reaches_the_planner_and_bad_values_exit_2(tmp_path, capsys, monkeypatch):
+    """``--restarts N`` is the planner's `restarts`; without it the planner's default holds (no key);
+    a negative count is bad input (exit 2) naming the flag, before any planning."""
+    from regrasp_casadi.problem import RegraspProblem
+
+    calls = _record_plan_calls(monkeypatch, RegraspProblem.load(PROBLEM))
+    cli.main(["plan", str(PROBLEM), "--restarts", "0", "--out", str(tmp_path / "p.json"), "--no-progress"])
+    cli.main(["plan", str(PROBLEM), "--out", str(tmp_path / "q.json"), "--no-progress"])
+    assert calls[0]["restarts"] == 0 and "restarts" not in calls[1]
+    capsys.readouterr()
+    assert cli.main(["plan", str(PROBLEM), "--restarts", "-1"]) == cli.EXIT_BAD_INPUT
+    assert "--restarts" in _one_error_line(capsys.readouterr().err)
+    assert len(calls) == 2
+
+
+def test_plan_says_a_plan_was_restarted(tmp_path, capsys):
+    """The real planner on the box problem cut short (one iteration): the first plan and its one restart
+    both stop at the limit; the summary says so, and the plan file keeps both plans' count."""
+    from regrasp_casadi.plan import Plan
+
+    out = tmp_path / "p.json"
+    code = cli.main(["plan", str(PROBLEM), "--stability", "none", "--max-iters", "1", "--restarts", "1",
+                     "--out", str(out), "--no-progress"])
+    text = capsys.readouterr().out
+    assert code == cli.EXIT_FAILED
+    assert "1 restart, none converged: the first plan is kept (2 iterations in all)" in text
+    plan = Plan.load(out)
+    assert plan.options["attempts"] == 2 and plan.options["iterations_all"] == 2

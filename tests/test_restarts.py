@@ -28,7 +28,8 @@ def _plan(status: str, gait: tuple[str, ...] = GAIT, timing: dict | None = None)
 def test_a_stalled_plan_is_planned_again_with_the_gait_reversed_and_the_converged_one_returned():
     asked: list[PlannerOptions] = []
 
-    def replan(options: PlannerOptions) -> Plan:
+    def replan(options: PlannerOptions, done: int) -> Plan:
+        assert done == 3  # the first plan's iterations
         asked.append(options)
         return _plan("converged", timing={"opt1": 0.5, "opt2": 1.5, "total": 2.5})
 
@@ -37,7 +38,7 @@ def test_a_stalled_plan_is_planned_again_with_the_gait_reversed_and_the_converge
     assert len(asked) == 1
     assert asked[0].gait == tuple(reversed(GAIT)) and asked[0].restarts == 0 and asked[0].method == "sd"
     assert plan.status == "converged" and plan.options["restart"] == "gait reversed"
-    assert plan.options["attempts"] == 2
+    assert plan.options["attempts"] == 2 and plan.options["iterations_all"] == 6
     assert plan.timing == {"opt1": 1.5, "opt2": 3.5, "total": 6.5}  # both plans' time, per key
     assert plan.options["solves"] == {"opt1": 20, "opt2": 6}  # and both plans' solves
     assert "after the first plan ended stalled" in plan.status_detail
@@ -45,14 +46,14 @@ def test_a_stalled_plan_is_planned_again_with_the_gait_reversed_and_the_converge
 
 def test_when_no_restart_converges_the_first_plan_is_returned_with_what_they_ended_in():
     first = _plan("pose_not_reached")
-    plan = restarted(first, PlannerOptions(restarts=1), lambda o: _plan("stalled"))
+    plan = restarted(first, PlannerOptions(restarts=1), lambda o, done: _plan("stalled"))
     assert plan.status == "pose_not_reached" and plan.steps == first.steps
     assert plan.status_detail == "pose_not_reached detail; restarts did not converge (gait reversed: stalled)"
     assert plan.options["restart"] == "" and plan.timing["total"] == 8.0
 
 
 def test_no_restart_without_restarts():
-    def replan(options):  # pragma: no cover - must not be called
+    def replan(options, done):  # pragma: no cover - must not be called
         raise AssertionError("planned again with restarts=0")
 
     first = _plan("stalled")
@@ -69,10 +70,14 @@ def test_a_bad_number_of_restarts_is_invalid_input(box_problem, restarts):
 def test_a_plan_cut_short_is_planned_again_and_the_restart_is_reproducible(box_problem):
     """An iteration limit of 1 stops the shipped box problem short; the restarts are stopped short too,
     so the first plan comes back with the restarts' statuses, and the first restart's options (the
-    gait reversed), planned without restarts, end as its detail says."""
+    gait reversed), planned without restarts, end as its detail says. Progress counts on through the
+    restarts: one iteration each, reported as iterations 1, 2, 3 and 4 of 1, 2, 3 and 4."""
     g0, goal = box_problem.grasp0, box_problem.grasp_goal
-    plan = plan_regrasp(g0, goal, stability="none", max_iters=1)
+    reported: list[tuple[int, int]] = []
+    plan = plan_regrasp(g0, goal, stability="none", max_iters=1,
+                        progress=lambda i, n, err: reported.append((i, n)))
     assert plan.status == "iteration_limit" and plan.options["attempts"] == 4
+    assert reported == [(1, 1), (2, 2), (3, 3), (4, 4)] and plan.options["iterations_all"] == 4
     assert plan.status_detail.endswith(
         "; restarts did not converge (gait reversed: iteration_limit; the other gait order: iteration_limit; "
         "shorter gaits: iteration_limit)")
