@@ -102,8 +102,10 @@ def restarted(first: Plan, options: PlannerOptions, replan: Callable[[PlannerOpt
         if plan.status == "converged":
             detail = f"{plan.status_detail}; restart ({name}) after the first plan ended {first.status}"
             return _whole_call(plan, plans, name, detail)
-        if plan.status not in RESTART_STATUSES:  # interrupted: stop there
-            break
+        if plan.status == "interrupted":  # Ctrl-C: the first plan, whole, comes back as interrupted
+            detail = (f"interrupted (Ctrl-C) during restart {len(plans) - 1} ({name}); the steps are the "
+                      f"first plan's, which ended {first.status}: {first.status_detail}")
+            return _whole_call(replace(first, status="interrupted"), plans, "", detail)
     detail = first.status_detail + (f"; restarts did not converge ({'; '.join(tried)})" if tried else "")
     return _whole_call(first, plans, "", detail)
 

@@ -52,6 +52,21 @@ def test_when_no_restart_converges_the_first_plan_is_returned_with_what_they_end
     assert plan.options["restart"] == "" and plan.timing["total"] == 8.0
 
 
+def test_a_restart_interrupted_by_ctrl_c_returns_the_first_plan_as_interrupted():
+    """A Ctrl-C during a restart ends the call: no further restart, the first plan's steps, status
+    "interrupted" (the CLI's exit 130), its own status kept in the detail."""
+    asked = []
+
+    def replan(options, done):
+        asked.append(options)
+        return _plan("interrupted")
+
+    plan = restarted(_plan("stalled"), PlannerOptions(restarts=3), replan)
+    assert len(asked) == 1 and plan.status == "interrupted" and plan.options["attempts"] == 2
+    assert plan.status_detail == ("interrupted (Ctrl-C) during restart 1 (gait reversed); the steps are the "
+                                  "first plan's, which ended stalled: stalled detail")
+
+
 def test_no_restart_without_restarts():
     def replan(options, done):  # pragma: no cover - must not be called
         raise AssertionError("planned again with restarts=0")
