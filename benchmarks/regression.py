@@ -46,10 +46,12 @@ def _problem_files(ycb: bool) -> list[pathlib.Path]:
 _SELF_CHECKS = ("self_collision", "self_collision_mesh")
 
 
-def fingerprint(path: str, method: str, self_collision: bool = True, stability: str | None = None) -> dict:
+def fingerprint(path: str, method: str, self_collision: bool = True, stability: str | None = None,
+                restarts: int | None = None) -> dict:
     """Plan one problem with one method; return its fingerprint (never raises). `self_collision=False`:
     plan without self-collision constraints and leave verify's self-collision checks out of "verified";
-    `stability`: `PlannerOptions.stability` of the plan (None: the planner's default)."""
+    `stability`, `restarts`: `PlannerOptions.stability` and `.restarts` of the plan (None: the planner's
+    default)."""
     from regrasp_casadi.planner import plan_regrasp
     from regrasp_casadi.problem import RegraspProblem
     from regrasp_casadi.verify import verify
@@ -60,6 +62,8 @@ def fingerprint(path: str, method: str, self_collision: bool = True, stability: 
         extra = {} if self_collision else {"self_clearance": None}
         if stability is not None:
             extra["stability"] = stability
+        if restarts is not None:
+            extra["restarts"] = restarts
         plan = plan_regrasp(problem.grasp0, problem.grasp_goal, method=method, **extra)
         report = verify(plan, problem.hand, problem.obj)
         counted = [v for v in report.violations if self_collision or v.check not in _SELF_CHECKS]
@@ -73,7 +77,8 @@ def fingerprint(path: str, method: str, self_collision: bool = True, stability: 
                steps="".join(s.kind[0] for s in plan.steps),
                mean_error_mm=round(float(np.mean(err)) * 1e3, 3),
                max_error_mm=round(float(np.max(err)) * 1e3, 3), verified=ok,
-               time_s=round(float(plan.timing.get("total", 0.0)), 2), self_collision_steps=self_steps)
+               time_s=round(float(plan.timing.get("total", 0.0)), 2), self_collision_steps=self_steps,
+               attempts=int(plan.options.get("attempts", 1)), restart=plan.options.get("restart", ""))
     return rec
 
 
@@ -117,11 +122,12 @@ def main(argv: list[str] | None = None) -> int:
                     help="plan with self_clearance=None; 'verified' without the self-collision checks")
     ap.add_argument("--stability", choices=("force_closure", "gravity", "none"),
                     help="PlannerOptions.stability of every plan (default: the planner's)")
+    ap.add_argument("--restarts", type=int, help="PlannerOptions.restarts of every plan (default: the planner's)")
     args = ap.parse_args(argv)
     from machine import machine_info
 
     on = not args.no_self_collision
-    jobs = [(str(p), m, on, args.stability) for p in _problem_files(not args.no_ycb) for m in ("svd", "sd")]
+    jobs = [(str(p), m, on, args.stability, args.restarts) for p in _problem_files(not args.no_ycb) for m in ("svd", "sd")]
     with ProcessPoolExecutor(args.workers) as pool:
         records = list(pool.map(fingerprint, *zip(*jobs, strict=True)))
     machine = machine_info()
