@@ -480,8 +480,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--max-iters", type=non_negative_int, metavar="N",
                     help="planner iteration limit (default: 50, the planner's)")
     sp.add_argument("--restarts", type=non_negative_int, metavar="N",
-                    help="plans made again with other gait choices if one does not converge (default: 3; "
-                         "0 for one plan: a failing plan then costs one plan's time, not up to four)")
+                    help="plans made again with other gait choices if one does not converge (default: 3 "
+                         "with --stability none, 1 with a certificate; 0: one plan, a failing plan costs "
+                         "one plan's time)")
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
     sp.set_defaults(func=cmd_plan)
 

@@ -430,7 +430,7 @@ def plan_regrasp(grasp0: Grasp, grasp_goal: Grasp, *, options: PlannerOptions | 
                           f"plan with stability='none' to plan without a stability certificate")
     with deferred_interrupts() as stop:
         plan = _iterate(grasp0, grasp_goal, options, t_start, run, progress, stop)
-        if options.restarts and plan.status in RESTART_STATUSES:  # planned again with a variant
+        if options.restart_count and plan.status in RESTART_STATUSES:  # planned again with a variant
             plan = restarted(plan, options, lambda o, done: _iterate(
                 grasp0, grasp_goal, o, time.perf_counter(), _Run(grasp0, grasp_goal, o, run.cache),
                 continued(progress, done), stop))

@@ -21,7 +21,19 @@ from regrasp_casadi.in_grasp import InGraspOptions
 if TYPE_CHECKING:
     from regrasp_casadi.grasp import Grasp
 
-__all__ = ["PlannerOptions", "input_problem", "number_problem", "stability_problem"]
+__all__ = ["PlannerOptions", "RESTARTS_CERTIFIED", "RESTARTS_UNCERTIFIED", "input_problem", "number_problem",
+           "stability_problem"]
+
+RESTARTS_UNCERTIFIED = 3
+"""Default `PlannerOptions.restarts` of the paper's planner (stability "none"). Measured (2026-12-08,
+`benchmarks/objects.py`, 240 plans of 120 generated pairs): 10 of its 20 failing plans converge on a
+restart, 8 with the gait reversed, 1 with the other gait order, 1 with η × 0.7."""
+RESTARTS_CERTIFIED = 1
+"""Default `PlannerOptions.restarts` with a stability certificate: the gait reversed alone. Measured
+(2026-12-08, `benchmarks/regression.py --stability force_closure`, the 50 YCB and 12 shipped plans):
+3 of the 58 failing certified plans converge on a restart, all 3 with the gait reversed; the other two
+variants converge none. The plans' summed time: 807 s without restarts, 1,619 s with this one,
+3,124 s with three."""
 
 
 @dataclass(frozen=True)
@@ -137,13 +149,15 @@ class PlannerOptions:
     it, a re-posture round searches so too for a finger whose goal posture is obstructed, from where
     the re-posture rounds first moved no finger (`final_rounds.free_postures`,
     `reposture.posture_obstruction`). None: neither."""
-    restarts: int = 3
+    restarts: int | None = None
     """A plan that does not converge ("stalled", "iteration_limit", "pose_not_reached",
     "solver_failure") is planned again from the start with up to this many variants of these options,
     in order (`restarts.VARIANTS`: the gait pattern reversed, the other gait order, η × 0.7); the first
     that converges is the plan, else the first plan with the restarts' statuses in its detail
     (`restarts.restarted`; an addition to the paper: the plans are local and amplify small
-    differences, so a stall is often a draw, not a verdict). 0: none."""
+    differences, so a stall is often a draw, not a verdict). 0: none. None (the default):
+    `RESTARTS_UNCERTIFIED` with stability "none", `RESTARTS_CERTIFIED` with a certificate
+    (`restart_count`; `Plan.options` records the number used)."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)
@@ -202,10 +216,18 @@ class PlannerOptions:
                 options = replace(options, **{sub: replace(getattr(options, sub), **{name: value})})
         return options
 
+    @property
+    def restart_count(self) -> int:
+        """The restarts a plan of these options makes: `restarts`, or its default for the stability."""
+        if self.restarts is not None:
+            return self.restarts
+        return RESTARTS_UNCERTIFIED if self.stability == "none" else RESTARTS_CERTIFIED
+
     def to_dict(self) -> dict:
-        """The options as plain data (nested dicts for the NLPs' options; the gait as a list or None),
-        as written into `Plan.options`."""
+        """The options as plain data (nested dicts for the NLPs' options; the gait as a list or None;
+        `restarts` the number used, `restart_count`), as written into `Plan.options`."""
         opts = asdict(self)
+        opts["restarts"] = self.restart_count
         opts["gait"] = list(opts["gait"]) if opts["gait"] is not None else None
         opts["gravity_palm"] = list(opts["gravity_palm"])
         return opts
@@ -244,8 +266,9 @@ def number_problem(options: PlannerOptions) -> str:  # noqa: PLR0911
         return f"final_time_budget must be non-negative (s) or None, got {options.final_time_budget}"
     if options.sd_escape_gain is not None and not options.sd_escape_gain >= 0:
         return f"sd_escape_gain must be non-negative (m) or None, got {options.sd_escape_gain}"
-    if not (isinstance(options.restarts, int) and options.restarts >= 0):
-        return f"restarts must be a non-negative number of plans, got {options.restarts!r}"
+    restarts = options.restarts
+    if restarts is not None and not (isinstance(restarts, int) and restarts >= 0):
+        return f"restarts must be a non-negative number of plans or None, got {restarts!r}"
     return ""
 
 

@@ -13,7 +13,8 @@ more with the stability gait order (bowl 15 SD) and one more with η × 0.7 (cup
 (bowl 5, 16 and 19, cup 15 and mug 10, both methods: a finger whose goal is across a wall or the
 handle) fail with all three, and cost four plans' time (mug 10 SD: 888 s against 157 s for its first).
 
-`restarted` makes up to `PlannerOptions.restarts` such draws, in the order of `VARIANTS`, each a whole
+`restarted` makes up to `PlannerOptions.restart_count` such draws (3 for the paper's planner, 1 with a
+stability certificate, by default), in the order of `VARIANTS`, each a whole
 plan from the initial grasp, and returns the first that converges; if none does, the first plan, with
 what the restarts ended in added to its status detail. A plan that converges the first time is the
 same plan as without restarts. Every draw is deterministic, so the call still is: the same input gives
@@ -74,9 +75,9 @@ the first plan's options and the gait pattern it used (`Plan.options["gait_used"
 
 
 def restart_options(options: PlannerOptions, gait_used: tuple[str, ...]) -> list[tuple[str, PlannerOptions]]:
-    """The first `options.restarts` variants (name, options), each with no restarts of its own."""
+    """The first `options.restart_count` variants (name, options), each with no restarts of its own."""
     return [(name, replace(make(options, gait_used), restarts=0))
-            for name, make in VARIANTS[:options.restarts]]
+            for name, make in VARIANTS[:options.restart_count]]
 
 
 def continued(progress: Callable[[int, int, float], None] | None,

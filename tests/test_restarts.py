@@ -8,7 +8,7 @@ import pytest
 
 from regrasp_casadi.plan import Plan
 from regrasp_casadi.planner import plan_regrasp
-from regrasp_casadi.planner_options import PlannerOptions
+from regrasp_casadi.planner_options import RESTARTS_UNCERTIFIED, PlannerOptions
 from regrasp_casadi.problem import RegraspProblem
 from regrasp_casadi.restarts import restarted
 from regrasp_casadi.verify import verify
@@ -74,6 +74,18 @@ def test_no_restart_without_restarts():
     first = _plan("stalled")
     plan = restarted(first, PlannerOptions(restarts=0), replan)
     assert plan.status == "stalled" and plan.status_detail == first.status_detail
+
+
+def test_the_default_number_of_restarts_follows_the_stability_certificate(box_problem):
+    """Unset, `restarts` is 3 for the paper's planner and 1 with a certificate (the gait reversed alone);
+    a plan records the number used, and the certified box plan cut short makes exactly two plans."""
+    assert PlannerOptions(stability="none").restart_count == RESTARTS_UNCERTIFIED == 3
+    assert PlannerOptions().stability == "force_closure" and PlannerOptions().restart_count == 1
+    assert PlannerOptions(stability="gravity", restarts=2).restart_count == 2
+    assert PlannerOptions(stability="none", restarts=0).to_dict()["restarts"] == 0
+    plan = plan_regrasp(box_problem.grasp0, box_problem.grasp_goal, max_iters=1)
+    assert plan.status == "iteration_limit" and plan.options["attempts"] == 2
+    assert plan.status_detail.endswith("; restarts did not converge (gait reversed: iteration_limit)")
 
 
 @pytest.mark.parametrize("restarts", [-1, 1.5, "1"])
