@@ -372,6 +372,7 @@ def test_screenshot_at_time_zero(plan_file, tmp_path, capsys):
 # ---------------------------------------------------------------------------- item 8: feedback, defaults
 def test_planning_bar_ends_at_the_iterations_run(capsys, monkeypatch):
     import regrasp_casadi.planner as planner_mod
+    from regrasp_casadi.cli_plan import run_plan
 
     def fake_plan(grasp0, grasp_goal, progress=None, **options):
         for it in (1, 2, 3):
@@ -379,12 +380,34 @@ def test_planning_bar_ends_at_the_iterations_run(capsys, monkeypatch):
         return SimpleNamespace(iterations=3)
 
     monkeypatch.setattr(planner_mod, "plan_regrasp", fake_plan)
-    plan = cli._run_plan(SimpleNamespace(grasp0=None, grasp_goal=None), "svd", None, show_progress=True)
+    plan = run_plan(SimpleNamespace(grasp0=None, grasp_goal=None), "svd", None, show_progress=True)
     assert plan.iterations == 3
     err = capsys.readouterr().err
     last = re.split(r"[\r\n]", err.strip())[-1]
     assert "100%" in last and "3/3" in last, err
     assert "3/50" in err   # the bar did run against max_iters until the plan stopped
+
+
+def test_planning_bar_counts_on_through_a_restart(capsys, monkeypatch):
+    """A first plan of 3 iterations, then a restart of 2 (its progress counted on, `restarts.continued`):
+    the bar goes 3/50, then 4/53 and 5/53, and ends at 5/5, not at the returned plan's 2."""
+    import regrasp_casadi.planner as planner_mod
+    from regrasp_casadi.cli_plan import run_plan
+    from regrasp_casadi.restarts import continued
+
+    def fake_plan(grasp0, grasp_goal, progress=None, **options):
+        for it in (1, 2, 3):
+            progress(it, 50, 0.004)
+        for it in (1, 2):
+            continued(progress, 3)(it, 50, 0.002)
+        return SimpleNamespace(iterations=2)
+
+    monkeypatch.setattr(planner_mod, "plan_regrasp", fake_plan)
+    run_plan(SimpleNamespace(grasp0=None, grasp_goal=None), "svd", None, show_progress=True)
+    err = capsys.readouterr().err
+    assert "3/50" in err and "5/53" in err
+    last = re.split(r"[\r\n]", err.strip())[-1]
+    assert "100%" in last and "5/5" in last, err
 
 
 def test_progress_only_on_a_terminal(monkeypatch):
