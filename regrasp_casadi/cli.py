@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from regrasp_casadi.cli_compile import add_compile_parser
-from regrasp_casadi.cli_plan import restart_line, run_plan
+from regrasp_casadi.cli_plan import add_planner_arguments, restart_line, run_plan
 from regrasp_casadi.cli_simulate import add_simulate_parser
 from regrasp_casadi.cli_tools import (
     HelpFormatter,
@@ -463,26 +463,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = add("plan", "plan a regrasp for a problem file, verify it, save it (and its HTML replay)")
     sp.add_argument("problem", metavar="PROBLEM.yaml", help="regrasp problem file (YAML)")
-    sp.add_argument("--method", choices=("svd", "sd"), default="svd",
-                    help="in-grasp objective E_des: svd (Kabsch pose) or sd (workspace distance)")
-    sp.add_argument("--stability", choices=("force_closure", "gravity", "none"), default=None,
-                    help="certificate every step must have: force closure of the holding fingers (default), "
-                         "gravity hold of the object's weight (--gravity), or none (the paper's planner)")
-    sp.add_argument("--gravity", nargs="+", metavar="X Y Z|support",
-                    help="gravity of --stability gravity (implied), palm frame, m/s^2 (default: the problem "
-                         "file's gravity, else 0 0 -9.81); 'support': pressing the object onto the fingers "
-                         "opposite the thumb")
+    add_planner_arguments(sp)
     sp.add_argument("--out", default="plan.json", metavar="PLAN.json", help="plan file to write")
     sp.add_argument("--html", metavar="REPLAY.html", help="also write a self-contained HTML replay")
     sp.add_argument("--view", action="store_true", help="open the live viewer after planning")
     _add_host(sp)
     _add_speed(sp)
-    sp.add_argument("--max-iters", type=non_negative_int, metavar="N",
-                    help="planner iteration limit (default: 50, the planner's)")
-    sp.add_argument("--restarts", type=non_negative_int, metavar="N",
-                    help="plans made again with other gait choices if one does not converge (default: 3 "
-                         "with --stability none, 1 with a certificate; 0: one plan, a failing plan costs "
-                         "one plan's time)")
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
     sp.set_defaults(func=cmd_plan)
 

@@ -6,14 +6,34 @@ progress bar (counting on through the planner's restarts), and the line that say
 
 from __future__ import annotations
 
+import argparse
 from typing import TYPE_CHECKING
 
-from regrasp_casadi.cli_tools import plan_gravity_palm, plan_progress, progress_bar
+from regrasp_casadi.cli_tools import non_negative_int, plan_gravity_palm, plan_progress, progress_bar
 
 if TYPE_CHECKING:  # pragma: no cover
     from regrasp_casadi.plan import Plan
 
-__all__ = ["restart_line", "run_plan"]
+__all__ = ["add_planner_arguments", "restart_line", "run_plan"]
+
+
+def add_planner_arguments(sp: argparse.ArgumentParser) -> None:
+    """`regrasp plan`'s planner flags: --method, --stability, --gravity, --max-iters, --restarts."""
+    sp.add_argument("--method", choices=("svd", "sd"), default="svd",
+                    help="in-grasp objective E_des: svd (Kabsch pose) or sd (workspace distance)")
+    sp.add_argument("--stability", choices=("force_closure", "gravity", "none"), default=None,
+                    help="certificate every step must have: force closure of the holding fingers (default), "
+                         "gravity hold of the object's weight (--gravity), or none (the paper's planner)")
+    sp.add_argument("--gravity", nargs="+", metavar="X Y Z|support",
+                    help="gravity of --stability gravity (implied), palm frame, m/s^2 (default: the problem "
+                         "file's gravity, else 0 0 -9.81); 'support': pressing the object onto the fingers "
+                         "opposite the thumb")
+    sp.add_argument("--max-iters", type=non_negative_int, metavar="N",
+                    help="planner iteration limit (default: 50, the planner's)")
+    sp.add_argument("--restarts", type=non_negative_int, metavar="N",
+                    help="plans made again with other gait choices if one does not converge (default: 3 "
+                         "with --stability none, 1 with a certificate; 0: one plan, a failing plan costs "
+                         "one plan's time)")
 
 
 def run_plan(problem, method: str, max_iters: int | None, show_progress: bool,
