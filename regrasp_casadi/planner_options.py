@@ -157,7 +157,8 @@ class PlannerOptions:
     (`restarts.restarted`; an addition to the paper: the plans are local and amplify small
     differences, so a stall is often a draw, not a verdict). 0: none. None (the default):
     `RESTARTS_UNCERTIFIED` with stability "none", `RESTARTS_CERTIFIED` with a certificate
-    (`restart_count`; `Plan.options` records the number used)."""
+    (`restart_count`; `Plan.options["restarts"]` is that number, 0 in a plan a restart returned: its
+    variant's options make none)."""
     skip_tol: float = 1e-4
     """A finger whose contact is this close to its goal is not moved, m."""
     finger_gait: FingerGaitOptions = field(default_factory=FingerGaitOptions)

@@ -92,8 +92,9 @@ def continued(progress: Callable[[int, int, float], None] | None,
 def restarted(first: Plan, options: PlannerOptions, replan: Callable[[PlannerOptions, int], Plan]) -> Plan:
     """The first converged plan of the restarts of `first` (a plan of `options` whose status is in
     `RESTART_STATUSES`), each made by `replan(variant_options, done)` (`done`: the iterations of the
-    plans before it); else `first`, its detail naming what the restarts ended in. The plan returned has
-    the whole call's timing (s, summed per key)."""
+    plans before it); else `first`, its detail naming what the restarts ended in, its status
+    "interrupted" when a Ctrl-C stopped a restart. The plan returned has the whole call's timing (s,
+    summed per key)."""
     plans = [first]
     tried = []
     for name, variant in restart_options(options, tuple(first.options.get("gait_used") or ())):
@@ -107,6 +108,8 @@ def restarted(first: Plan, options: PlannerOptions, replan: Callable[[PlannerOpt
             detail = (f"interrupted (Ctrl-C) during restart {len(plans) - 1} ({name}); the steps are the "
                       f"first plan's, which ended {first.status}: {first.status_detail}")
             return _whole_call(replace(first, status="interrupted"), plans, "", detail)
+        if plan.status not in RESTART_STATUSES:  # invalid_input (a variant refused): stop there
+            break
     detail = first.status_detail + (f"; restarts did not converge ({'; '.join(tried)})" if tried else "")
     return _whole_call(first, plans, "", detail)
 
