@@ -62,8 +62,8 @@ def run_plan(problem, method: str, max_iters: int | None, show_progress: bool,
 
 
 def restart_line(plan: Plan) -> str | None:
-    """One line naming the restart a converged plan came from, or how many plans a failed one took;
-    None for a plan made once."""
+    """One line naming the restart a converged plan came from, how many plans a failed one took, or
+    the restart a Ctrl-C stopped; None for a plan made once."""
     attempts = plan.options.get("attempts", 1)
     if attempts <= 1:
         return None
@@ -72,5 +72,7 @@ def restart_line(plan: Plan) -> str | None:
         return (f"restarted: the first plan did not converge; this is restart {attempts - 1} "
                 f"({plan.options['restart']}), {attempts} plans and {total} iterations in all")
     n = attempts - 1
+    if plan.status == "interrupted":
+        return f"interrupted during restart {n}: the first plan is kept ({total} iterations in all)"
     return (f"{n} restart{'s' if n > 1 else ''}, none converged: the first plan is kept "
             f"({total} iterations in all)")

@@ -366,3 +366,20 @@ def test_plan_says_a_plan_was_restarted(tmp_path, capsys):
     assert "1 restart, none converged: the first plan is kept (2 iterations in all)" in text
     plan = Plan.load(out)
     assert plan.options["attempts"] == 2 and plan.options["iterations_all"] == 2
+
+
+def test_the_restart_line_names_what_the_restarts_did():
+    """A plan made once has no line; a converged restart is named; a Ctrl-C during a restart says so."""
+    from types import SimpleNamespace
+
+    from regrasp_casadi.cli_plan import restart_line
+
+    def plan(status, **options):
+        return SimpleNamespace(status=status, iterations=4, options=options)
+
+    assert restart_line(plan("converged")) is None
+    assert restart_line(plan("converged", attempts=2, restart="gait reversed", iterations_all=9)) == (
+        "restarted: the first plan did not converge; this is restart 1 (gait reversed), 2 plans and 9 "
+        "iterations in all")
+    assert restart_line(plan("interrupted", attempts=3, restart="", iterations_all=7)) == (
+        "interrupted during restart 2: the first plan is kept (7 iterations in all)")
