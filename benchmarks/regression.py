@@ -122,12 +122,14 @@ def main(argv: list[str] | None = None) -> int:
                     help="plan with self_clearance=None; 'verified' without the self-collision checks")
     ap.add_argument("--stability", choices=("force_closure", "gravity", "none"),
                     help="PlannerOptions.stability of every plan (default: the planner's)")
-    ap.add_argument("--restarts", type=int, help="PlannerOptions.restarts of every plan (default: the planner's)")
+    ap.add_argument("--restarts", type=int,
+                    help="PlannerOptions.restarts of every plan (default: the planner's)")
     args = ap.parse_args(argv)
     from machine import machine_info
 
     on = not args.no_self_collision
-    jobs = [(str(p), m, on, args.stability, args.restarts) for p in _problem_files(not args.no_ycb) for m in ("svd", "sd")]
+    jobs = [(str(p), m, on, args.stability, args.restarts)
+            for p in _problem_files(not args.no_ycb) for m in ("svd", "sd")]
     with ProcessPoolExecutor(args.workers) as pool:
         records = list(pool.map(fingerprint, *zip(*jobs, strict=True)))
     machine = machine_info()

@@ -113,8 +113,9 @@ def _finish_plan(plan: Plan, hand, obj, out: Path | None, html: Path | None, ela
           f"({plan.step_counts()}), method {plan.method}")
     if plan.status != "converged" and plan.status_detail:
         print(f"  ({' '.join(plan.status_detail.split())})")
-    if restart_line(plan):
-        print(f"  {restart_line(plan)}")
+    restarts = restart_line(plan)
+    if restarts:
+        print(f"  {restarts}")
     print(f"final average contact error: {err * 1e3:.2f} mm; object {dp * 1e3:.2f} mm / "
           f"{math.degrees(dr):.2f}° from the desired pose; planning time {elapsed:.2f} s\n"
           f"verify: {'OK' if report.ok else f'FAILED ({len(report.violations)} violations)'}")

@@ -42,7 +42,7 @@ def run_plan(problem, method: str, max_iters: int | None, show_progress: bool,
     """`plan_regrasp` on a `RegraspProblem` with the flags given (None: the planner's default), with a
     progress bar on stderr when `show_progress`. `gravity_palm` is `--gravity`'s value (X Y Z m/s², palm
     frame, or "support")."""
-    from regrasp_casadi.planner import plan_regrasp
+    from regrasp_casadi.planner import PlannerOptions, plan_regrasp
 
     kwargs = {"method": method}
     for key, value in (("max_iters", max_iters), ("stability", stability), ("restarts", restarts)):
@@ -52,7 +52,7 @@ def run_plan(problem, method: str, max_iters: int | None, show_progress: bool,
         kwargs["gravity_palm"] = plan_gravity_palm(gravity_palm, problem.grasp0)
     if getattr(problem, "object_mass", None) is not None:
         kwargs["object_mass"] = problem.object_mass
-    n_max = max_iters if max_iters is not None else 50
+    n_max = max_iters if max_iters is not None else PlannerOptions.max_iters
     with progress_bar("planning", show_progress, total=n_max) as bar:
         plan = plan_regrasp(problem.grasp0, problem.grasp_goal, progress=plan_progress(bar), **kwargs)
         if bar is not None:   # the bar ends where the plan stopped (its restarts included), at 100 %
@@ -67,11 +67,10 @@ def restart_line(plan: Plan) -> str | None:
     attempts = plan.options.get("attempts", 1)
     if attempts <= 1:
         return None
-    total = plan.options.get("iterations_all", plan.iterations)
+    n, total = attempts - 1, plan.options.get("iterations_all", plan.iterations)
     if plan.options.get("restart"):
-        return (f"restarted: the first plan did not converge; this is restart {attempts - 1} "
+        return (f"restarted: the first plan did not converge; this is restart {n} "
                 f"({plan.options['restart']}), {attempts} plans and {total} iterations in all")
-    n = attempts - 1
     if plan.status == "interrupted":
         return f"interrupted during restart {n}: the first plan is kept ({total} iterations in all)"
     return (f"{n} restart{'s' if n > 1 else ''}, none converged: the first plan is kept "
